@@ -1,0 +1,5 @@
+import sys
+
+from asvtwin.cli import main
+
+sys.exit(main())
