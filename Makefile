@@ -1,0 +1,29 @@
+# One command each: `make run` (the twin's demo on the embedded default scene) and
+# `make test` (the test suite). Both create .venv and install what they need.
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+# pytest workers: 2 on CI's 2 cores
+WORKERS ?= 2
+
+.PHONY: run test bench clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+$(VENV)/.installed-test: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $@
+
+run: $(VENV)/.installed-test
+	$(BIN)/asvtwin sim --out out
+
+test: $(VENV)/.installed-test
+	$(BIN)/python -m pytest -n $(WORKERS) -q
+
+bench: $(VENV)/.installed-test
+	@for b in benchmarks/*.py; do echo "== $$b"; $(BIN)/python $$b; done
+
+clean:
+	rm -rf $(VENV) out .pytest_cache

@@ -1,0 +1,53 @@
+from __future__ import annotations
+
+import argparse
+import csv
+
+import pytest
+
+from asvtwin import __version__
+from asvtwin.cli import build_parser, main
+
+
+def _all_commands(parser, prefix=()):
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield prefix + (name,)
+                yield from _all_commands(sub, prefix + (name,))
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0
+    assert __version__ in capsys.readouterr().out
+
+
+def test_every_command_has_help(capsys):
+    commands = list(_all_commands(build_parser()))
+    assert ("sim",) in commands
+    for cmd in commands:
+        with pytest.raises(SystemExit) as e:
+            main([*cmd, "--help"])
+        assert e.value.code == 0
+        assert "usage: asvtwin" in capsys.readouterr().out
+
+
+def test_sim_writes_csv_and_png(tmp_path, capsys):
+    assert main(["sim", "--vessel", "cybership2", "--manoeuvre", "thrust-step",
+                 "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "steady_speed_analytic_m_s" in out
+    rows = list(csv.DictReader((tmp_path / "cybership2_thrust-step.csv").open()))
+    assert float(rows[0]["u_m_s"]) == 0.0
+    assert float(rows[-1]["u_m_s"]) == pytest.approx(0.5788, abs=2e-3)
+    png = (tmp_path / "cybership2_thrust-step.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+
+
+def test_sim_rejects_unknown_vessel(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["sim", "--vessel", "titanic"])
+    assert e.value.code == 2
+    assert "invalid choice" in capsys.readouterr().err
