@@ -9,13 +9,13 @@ from __future__ import annotations
 
 __all__ = [
     "AsvTwinError",
-    "ParameterError",
-    "StateError",
-    "SceneError",
     "ConfigError",
-    "SourceError",
-    "SolverError",
     "MissingExtraError",
+    "ParameterError",
+    "SceneError",
+    "SolverError",
+    "SourceError",
+    "StateError",
 ]
 
 

@@ -11,14 +11,14 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "KNOT_M_S",
+    "compass_deg_to_rad",
+    "deg_to_rad",
+    "hpa_to_pa",
     "knots_to_m_s",
     "m_s_to_knots",
-    "deg_to_rad",
+    "pa_to_hpa",
     "rad_to_deg",
     "wrap_angle",
-    "compass_deg_to_rad",
-    "hpa_to_pa",
-    "pa_to_hpa",
 ]
 
 #: One international knot in m/s (1852 m per hour).

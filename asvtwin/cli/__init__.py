@@ -17,7 +17,7 @@ from collections.abc import Sequence
 
 from asvtwin import __version__
 
-__all__ = ["main", "build_parser"]
+__all__ = ["build_parser", "main"]
 
 #: Modules of this package that register sub-commands, in help order.
 COMMAND_MODULES = ("sim", "ais", "weather", "figures", "psf", "observer")

@@ -7,7 +7,7 @@ import csv
 import math
 from pathlib import Path
 
-__all__ = ["register", "write_csv", "plot_manoeuvre"]
+__all__ = ["plot_manoeuvre", "register", "write_csv"]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -41,7 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_run)
 
 
-def write_csv(path: Path, result) -> None:  # noqa: ANN001 - ManoeuvreResult
+def write_csv(path: Path, result) -> None:
     """Time series of a manoeuvre as CSV (SI units, heading in degrees)."""
     with path.open("w", newline="") as f:
         w = csv.writer(f)
@@ -54,7 +54,7 @@ def write_csv(path: Path, result) -> None:  # noqa: ANN001 - ManoeuvreResult
                         f"{tau[2]:.6g}"])
 
 
-def plot_manoeuvre(path: Path, result) -> None:  # noqa: ANN001
+def plot_manoeuvre(path: Path, result) -> None:
     """Track (north up) and time series of a manoeuvre as a PNG."""
     import matplotlib
 

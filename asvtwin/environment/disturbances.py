@@ -32,17 +32,17 @@ from asvtwin.errors import ConfigError
 from asvtwin.vessel.params import RHO_SEA, VesselParams
 
 __all__ = [
-    "GaussMarkov",
     "CurrentConfig",
-    "WindConfig",
-    "WaveConfig",
+    "Environment",
     "EnvironmentConfig",
     "EnvironmentState",
-    "Environment",
-    "default_environment",
+    "GaussMarkov",
+    "WaveConfig",
+    "WindConfig",
     "calm_environment",
-    "wind_vector",
+    "default_environment",
     "gauss_markov_step",
+    "wind_vector",
 ]
 
 G = 9.81

@@ -43,8 +43,8 @@ __all__ = [
     "RHO_AIR",
     "WindCoefficients",
     "current_force",
-    "wind_force",
     "wave_drift_force",
+    "wind_force",
 ]
 
 #: Density of air at 10 °C at sea level [kg/m^3].
@@ -58,7 +58,7 @@ class WindCoefficients:
     c_x = 0.7 (0.50-0.90), c_y = 0.85 (0.70-0.95), c_n = 0.10 (0.05-0.20).
     """
 
-    __slots__ = ("c_x", "c_y", "c_n")
+    __slots__ = ("c_n", "c_x", "c_y")
 
     def __init__(self, c_x: float = 0.7, c_y: float = 0.85, c_n: float = 0.10) -> None:
         self.c_x, self.c_y, self.c_n = float(c_x), float(c_y), float(c_n)

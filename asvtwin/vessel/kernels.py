@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["rhs_batch", "rk4_batch", "actuator_batch", "step_batch"]
+__all__ = ["actuator_batch", "rhs_batch", "rk4_batch", "step_batch"]
 
 
 @njit(cache=True, inline="always")

@@ -14,10 +14,11 @@ metrics in SI units and degrees where a ship handler expects them.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
 from asvtwin.errors import ParameterError
@@ -25,12 +26,12 @@ from asvtwin.vessel.params import VesselParams
 from asvtwin.vessel.simulator import VesselSimulator
 
 __all__ = [
+    "MANOEUVRES",
     "ManoeuvreResult",
     "steady_surge_speed",
+    "thrust_step",
     "turning_circle",
     "zigzag",
-    "thrust_step",
-    "MANOEUVRES",
 ]
 
 
@@ -50,9 +51,9 @@ class ManoeuvreResult:
 
     name: str
     vessel: str
-    t_s: NDArray[np.float64]
-    x: NDArray[np.float64]
-    tau: NDArray[np.float64]
+    t_s: NDArray[np.floating]
+    x: NDArray[np.floating]
+    tau: NDArray[np.floating]
     metrics: dict[str, float] = field(default_factory=dict)
 
 
@@ -72,7 +73,8 @@ def steady_surge_speed(params: VesselParams, force_n: float) -> float:
 
 
 def _run(params: VesselParams, x0: NDArray[np.float64], dt_s: float, n_steps: int,
-         control) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+         control: Callable[[float, NDArray[np.float64]], ArrayLike]
+         ) -> tuple[NDArray[np.floating], NDArray[np.floating], NDArray[np.floating]]:
     sim = VesselSimulator(params, x0, dt_s=dt_s)
     xs = np.empty((n_steps + 1, 6))
     taus = np.empty((n_steps + 1, 3))
@@ -230,7 +232,7 @@ def thrust_step(params: VesselParams, *, surge_fraction: float = 1.0,
 
 
 #: CLI names of the manoeuvres.
-MANOEUVRES = {
+MANOEUVRES: dict[str, Callable[..., ManoeuvreResult]] = {
     "turning-circle": turning_circle,
     "zigzag": zigzag,
     "thrust-step": thrust_step,

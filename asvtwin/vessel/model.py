@@ -23,13 +23,13 @@ from asvtwin.errors import StateError
 from asvtwin.vessel.params import VesselParams
 
 __all__ = [
-    "rotation",
     "coriolis",
     "damping",
-    "rhs",
-    "state_space",
-    "kinetic_energy",
     "dissipation_margin",
+    "kinetic_energy",
+    "rhs",
+    "rotation",
+    "state_space",
     "validate_array",
 ]
 
@@ -143,7 +143,7 @@ def kinetic_energy(p: VesselParams, nu: ArrayLike) -> NDArray[np.float64]:
     return 0.5 * np.einsum("ni,ij,nj->n", nu, p.M, nu)
 
 
-def dissipation_margin(p: VesselParams, nu: ArrayLike) -> NDArray[np.float64]:
+def dissipation_margin(p: VesselParams, nu: ArrayLike) -> NDArray[np.floating]:
     """Smallest eigenvalue of the symmetric part of D(ν), shape (n,).
 
     Positive means the damping dissipates energy at that velocity. The published
@@ -151,4 +151,5 @@ def dissipation_margin(p: VesselParams, nu: ArrayLike) -> NDArray[np.float64]:
     sway speeds (|v| ≳ 2.8 m/s at model scale), far outside the vessel's envelope.
     """
     D = damping(p, nu)
-    return np.linalg.eigvalsh(0.5 * (D + np.swapaxes(D, 1, 2)))[:, 0]
+    eig: NDArray[np.floating] = np.linalg.eigvalsh(0.5 * (D + np.swapaxes(D, 1, 2)))[:, 0]
+    return eig

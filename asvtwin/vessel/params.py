@@ -32,16 +32,16 @@ from numpy.typing import NDArray
 from asvtwin.errors import ParameterError
 
 __all__ = [
-    "VesselParams",
+    "PACKED_FIELDS",
+    "RHO_FRESH",
+    "RHO_SEA",
+    "VESSELS",
     "ActuatorParams",
+    "VesselParams",
     "cybership2",
     "cybership2_full_scale",
     "froude_scale",
     "vessel_by_name",
-    "VESSELS",
-    "RHO_SEA",
-    "RHO_FRESH",
-    "PACKED_FIELDS",
 ]
 
 #: Density of sea water [kg/m^3] and of the fresh water of a model basin [kg/m^3].
@@ -448,11 +448,17 @@ def froude_scale(params: VesselParams, scale: float, *, rho_water: float = RHO_S
     moment = mass_ratio * scale
     act = params.actuators
     per_dof = (force, force, moment)
+    def triple(values: tuple[float, float, float], k: tuple[float, float, float]
+               ) -> tuple[float, float, float]:
+        return (values[0] * k[0], values[1] * k[1], values[2] * k[2])
+
+    times = (time_ratio, time_ratio, time_ratio)
     changes["actuators"] = ActuatorParams(
-        tau_min=tuple(v * k for v, k in zip(act.tau_min, per_dof)),
-        tau_max=tuple(v * k for v, k in zip(act.tau_max, per_dof)),
-        time_constant_s=tuple(t * time_ratio for t in act.time_constant_s),
-        rate_limit=tuple(r * k / time_ratio for r, k in zip(act.rate_limit, per_dof)),
+        tau_min=triple(act.tau_min, per_dof),
+        tau_max=triple(act.tau_max, per_dof),
+        time_constant_s=triple(act.time_constant_s, times),
+        rate_limit=triple(act.rate_limit, (force / time_ratio, force / time_ratio,
+                                           moment / time_ratio)),
     )
     changes["rho_water"] = rho_water
     changes["name"] = name or f"{params.name}_x{scale:g}"

@@ -88,7 +88,7 @@ def test_default_environment_is_froude_scaled_for_the_model():
     assert model.current.speed_m_s == pytest.approx(full.current.speed_m_s * k)
     assert model.waves.Hs_m == pytest.approx(full.waves.Hs_m * 1.255 / 87.85)
     # the same sea state gives Froude-similar forces: force ratio λ³ρ_ratio
-    lam, rho = 70.0, 1.025
+    lam = 70.0
     x = np.zeros((1, 6))
     fm = Environment(EnvironmentConfig(wind=model.wind)).forces(
         cybership2(), x, Environment(EnvironmentConfig(wind=model.wind)).initial_state(
