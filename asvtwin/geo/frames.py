@@ -54,9 +54,9 @@ _B = WGS84_A_M * (1.0 - WGS84_F)  # semi-minor axis [m]
 _E2 = WGS84_F * (2.0 - WGS84_F)  # first eccentricity squared [-]
 
 
-def _ecef_surface(lat_rad: NDArray[np.float64], lon_rad: NDArray[np.float64]) -> tuple[
-    NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]
-]:
+def _ecef_surface(
+    lat_rad: NDArray[np.float64], lon_rad: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """ECEF coordinates [m] of points on the ellipsoid surface (h = 0)."""
     sin_lat = np.sin(lat_rad)
     cos_lat = np.cos(lat_rad)
@@ -107,7 +107,9 @@ class LocalFrame:
     def __post_init__(self) -> None:
         lat0, lon0 = self.lat0_deg, self.lon0_deg
         if not _is_real(lat0) or not math.isfinite(lat0) or not -90 < lat0 < 90:
-            raise ParameterError(f"lat0_deg must be a finite number in (-90, 90), actually: {lat0!r}")
+            raise ParameterError(
+                f"lat0_deg must be a finite number in (-90, 90), actually: {lat0!r}"
+            )
         if not _is_real(lon0) or not math.isfinite(lon0) or not -180 <= lon0 <= 180:
             raise ParameterError(
                 f"lon0_deg must be a finite number in [-180, 180], actually: {lon0!r}"
