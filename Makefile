@@ -17,7 +17,7 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 	touch $@
 
 run: $(VENV)/.installed-test
-	$(BIN)/asvtwin sim --out out
+	$(BIN)/asvtwin sim --scene default --out out
 
 test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -n $(WORKERS) -q

@@ -38,6 +38,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=Path("out"),
                    help="output folder (default: %(default)s)")
     p.add_argument("--no-plot", action="store_true", help="write the CSV only")
+    p.add_argument("--scene", default=None, metavar="SCENE",
+                   help="run the manoeuvre at the origin of a scene ('default' for the "
+                        "embedded Trondheim Fjord, or a scene file); draws the coast and "
+                        "reports the closest approach to the shore")
+    p.add_argument("--start-heading-deg", type=float, default=0.0,
+                   help="initial heading [deg from north] (default: %(default)s)")
     p.set_defaults(func=_run)
 
 
@@ -54,8 +60,9 @@ def write_csv(path: Path, result) -> None:
                         f"{tau[2]:.6g}"])
 
 
-def plot_manoeuvre(path: Path, result) -> None:
-    """Track (north up) and time series of a manoeuvre as a PNG."""
+def plot_manoeuvre(path: Path, result, scene=None) -> None:  # noqa: ANN001
+    """Track (north up) and time series of a manoeuvre as a PNG; with a scene, the
+    coast around the track is drawn too."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -74,11 +81,29 @@ def plot_manoeuvre(path: Path, result) -> None:
               angles="xy", scale_units="xy", scale=1.0 / hull_len,
               width=0.004, label="heading")
     ax.plot(x[0, 1], x[0, 0], "o", color="k", label="start")
+    if scene is not None:
+        import shapely
+
+        pad = max(span, 300.0)
+        box = shapely.box(x[:, 0].min() - pad, x[:, 1].min() - pad,
+                          x[:, 0].max() + pad, x[:, 1].max() + pad)
+        near = scene.land.polygons.intersection(box)
+        for poly in shapely.get_parts(near):
+            if poly.geom_type != "Polygon":
+                continue
+            n_, e_ = poly.exterior.xy
+            ax.fill(e_, n_, color="#d9c9a3", edgecolor="#8a7a55", lw=0.8, zorder=0)
+        ax.set_xlim(box.bounds[1], box.bounds[3])
+        ax.set_ylim(box.bounds[0], box.bounds[2])
+        ax.set_aspect("equal", adjustable="box")
+        ax.set_facecolor("#e6f0f7")
     ax.set_xlabel("east [m]")
     ax.set_ylabel("north [m]")
-    ax.set_aspect("equal", adjustable="datalim")
+    if scene is None:
+        ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
-    ax.set_title(f"{result.name} — {result.vessel}")
+    where = f" — {scene.name}" if scene is not None else ""
+    ax.set_title(f"{result.name} — {result.vessel}{where}")
     text = "\n".join(f"{k} = {v:.3g}" for k, v in result.metrics.items())
     ax.text(0.02, 0.02, text, transform=ax.transAxes, fontsize=8, va="bottom",
             bbox=dict(facecolor="white", alpha=0.8, edgecolor="0.7"))
@@ -122,11 +147,28 @@ def _run(args: argparse.Namespace) -> int:
     kwargs["surge_fraction"] = surge
     if args.manoeuvre == "zigzag":
         kwargs["switch_deg"] = args.switch_deg
+    if args.start_heading_deg != 0.0:
+        kwargs["psi0_rad"] = math.radians(args.start_heading_deg)
+    scene = None
     try:
+        if args.scene is not None:
+            from asvtwin.geo import default_scene, load_scene
+
+            scene = default_scene() if args.scene == "default" else load_scene(args.scene)
         result = MANOEUVRES[args.manoeuvre](params, **kwargs)
     except AsvTwinError as exc:
         console.print(f"[red]error:[/red] {exc}")
         return 1
+    if scene is not None:
+        import numpy as np
+
+        track = result.x[:, :2]
+        on_land = scene.land.contains(track)
+        clearance = float(np.min(scene.land.distance_to_shore(track)))
+        result.metrics["min_distance_to_shore_m"] = 0.0 if on_land.any() else clearance
+        if on_land.any():
+            t_ground = float(result.t_s[np.argmax(on_land)])
+            console.print(f"[red]aground[/red] at t = {t_ground:.1f} s in {scene.name}")
     table = Table(title=f"{args.manoeuvre} — {params.name} (L = {params.length:g} m)")
     table.add_column("metric")
     table.add_column("value", justify="right")
@@ -138,6 +180,6 @@ def _run(args: argparse.Namespace) -> int:
     write_csv(stem.with_suffix(".csv"), result)
     console.print(f"wrote {stem.with_suffix('.csv')}")
     if not args.no_plot:
-        plot_manoeuvre(stem.with_suffix(".png"), result)
+        plot_manoeuvre(stem.with_suffix(".png"), result, scene)
         console.print(f"wrote {stem.with_suffix('.png')}")
     return 0

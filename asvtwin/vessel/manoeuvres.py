@@ -7,7 +7,8 @@ whenever the heading has turned ``b`` degrees away from the base course (``a`` n
 yaw fraction in tenths, 10 meaning full yaw moment); a *thrust step* applies a surge
 thrust step from rest.
 
-Each returns a :class:`ManoeuvreResult` with the time series (plain arrays) and a dict of
+Each starts at the origin on heading ``psi0_rad`` and returns a
+:class:`ManoeuvreResult` with the time series (plain arrays) and a dict of
 metrics in SI units and degrees where a ship handler expects them.
 """
 
@@ -86,6 +87,19 @@ def _run(params: VesselParams, x0: NDArray[np.float64], dt_s: float, n_steps: in
     return np.arange(n_steps + 1) * dt_s, xs, taus
 
 
+def _rotated(xs: NDArray[np.floating], psi0_rad: float) -> NDArray[np.floating]:
+    """The same run started on heading ``psi0_rad``: positions turned about the start,
+    headings offset (the model is invariant to both; metrics are computed before)."""
+    if psi0_rad == 0.0:
+        return xs
+    out = xs.copy()
+    c, s = math.cos(psi0_rad), math.sin(psi0_rad)
+    out[:, 0] = c * xs[:, 0] - s * xs[:, 1]
+    out[:, 1] = s * xs[:, 0] + c * xs[:, 1]
+    out[:, 2] = xs[:, 2] + psi0_rad
+    return out
+
+
 def _approach(params: VesselParams, surge_fraction: float) -> tuple[float, float]:
     act = params.actuators
     F = surge_fraction * act.tau_max[0]
@@ -102,8 +116,8 @@ def _time_scale(params: VesselParams) -> float:
 
 
 def turning_circle(params: VesselParams, *, surge_fraction: float = 1.0,
-                   yaw_fraction: float = 1.0, dt_s: float | None = None
-                   ) -> ManoeuvreResult:
+                   yaw_fraction: float = 1.0, dt_s: float | None = None,
+                   psi0_rad: float = 0.0) -> ManoeuvreResult:
     """Turn to starboard from a steady approach until the heading has changed 540°.
 
     Metrics: advance and transfer at 90°, tactical diameter (transfer at 180°), steady
@@ -148,12 +162,12 @@ def turning_circle(params: VesselParams, *, surge_fraction: float = 1.0,
     }
     m["advance_L"] = m["advance_m"] / L
     m["tactical_diameter_L"] = m["tactical_diameter_m"] / L
-    return ManoeuvreResult("turning_circle", params.name, t, xs, tau, m)
+    return ManoeuvreResult("turning_circle", params.name, t, _rotated(xs, psi0_rad), tau, m)
 
 
 def zigzag(params: VesselParams, *, switch_deg: float = 10.0, yaw_fraction: float = 1.0,
-           surge_fraction: float = 1.0, n_switches: int = 5, dt_s: float | None = None
-           ) -> ManoeuvreResult:
+           surge_fraction: float = 1.0, n_switches: int = 5, dt_s: float | None = None,
+           psi0_rad: float = 0.0) -> ManoeuvreResult:
     """Zig-zag: yaw moment ±``yaw_fraction``·τ_r,max, reversed when the heading passes
     ±``switch_deg``. Metrics: first and second overshoot angles [deg], initial turning
     time, period of the first full cycle, and ``swing_checked`` (1 or 0).
@@ -203,12 +217,13 @@ def zigzag(params: VesselParams, *, switch_deg: float = 10.0, yaw_fraction: floa
         "initial_turning_time_s": switch_t[0],
         "period_s": (switch_t[2] - switch_t[0]) if len(switch_t) >= 3 else float("nan"),
     }
-    return ManoeuvreResult(f"zigzag_{switch_deg:g}", params.name, t, xs, tau, m)
+    return ManoeuvreResult(f"zigzag_{switch_deg:g}", params.name, t, _rotated(xs, psi0_rad),
+                           tau, m)
 
 
 def thrust_step(params: VesselParams, *, surge_fraction: float = 1.0,
-                duration_s: float | None = None, dt_s: float | None = None
-                ) -> ManoeuvreResult:
+                duration_s: float | None = None, dt_s: float | None = None,
+                psi0_rad: float = 0.0) -> ManoeuvreResult:
     """From rest, a surge thrust step. Metrics: final and analytic steady speed, the time
     to reach 63 % and 95 % of it, distance run."""
     F, U = _approach(params, surge_fraction)
@@ -228,7 +243,7 @@ def thrust_step(params: VesselParams, *, surge_fraction: float = 1.0,
         "t95_s": float(np.interp(0.95 * U, u, t)),
         "distance_m": float(xs[-1, 0]),
     }
-    return ManoeuvreResult("thrust_step", params.name, t, xs, tau, m)
+    return ManoeuvreResult("thrust_step", params.name, t, _rotated(xs, psi0_rad), tau, m)
 
 
 #: CLI names of the manoeuvres.

@@ -51,3 +51,19 @@ def test_sim_rejects_unknown_vessel(capsys):
         main(["sim", "--vessel", "titanic"])
     assert e.value.code == 2
     assert "invalid choice" in capsys.readouterr().err
+
+
+def test_sim_in_the_fjord_reports_clearance_and_grounding(tmp_path, capsys):
+    # from Trondheim harbour north into open water: clear of the shore
+    assert main(["sim", "--scene", "default", "--manoeuvre", "turning-circle",
+                 "--out", str(tmp_path), "--no-plot"]) == 0
+    out = capsys.readouterr().out
+    assert "min_distance_to_shore_m" in out and "aground" not in out
+    # heading 120° from the harbour runs onto Brattøra
+    assert main(["sim", "--scene", "default", "--manoeuvre", "thrust-step",
+                 "--start-heading-deg", "120", "--out", str(tmp_path), "--no-plot"]) == 0
+    assert "aground at t =" in capsys.readouterr().out
+    rows = list(csv.DictReader(
+        (tmp_path / "cybership2_fullscale_thrust-step.csv").open()))
+    assert float(rows[-1]["psi_deg"]) == pytest.approx(120.0)
+    assert float(rows[-1]["y_m"]) > 0 > float(rows[-1]["x_m"])  # heading south-east
