@@ -206,6 +206,16 @@ class Environment:
         self._wind_mean = wind_vector(config.wind.speed_m_s, config.wind.from_direction_rad)
         self._coeff = WindCoefficients(config.wind.c_x, config.wind.c_y, config.wind.c_n)
 
+    @property
+    def current_mean_ned_m_s(self) -> NDArray[np.float64]:
+        """Mean current velocity [N, E] [m/s] (the state adds the slow variation)."""
+        return self._current_mean.copy()
+
+    @property
+    def wind_mean_ned_m_s(self) -> NDArray[np.float64]:
+        """Mean air velocity [N, E] [m/s] (the state adds the gusts)."""
+        return self._wind_mean.copy()
+
     def _state(self, t: float, bc: NDArray[np.float64], bw: NDArray[np.float64], bz: float
                ) -> EnvironmentState:
         return EnvironmentState(
