@@ -53,6 +53,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from asvtwin.errors import ParameterError, StateError
+from asvtwin.vessel.kernels import hydrodynamic_force as _n_nu
 from asvtwin.vessel.params import VesselParams, cybership2
 
 __all__ = [
@@ -141,28 +142,6 @@ def default_gains(params: VesselParams) -> ObserverGains:
     """
     s = math.sqrt(cybership2().length / params.length)
     return ObserverGains(tuple(k * s for k in _MODEL_SCALE_GAINS))  # type: ignore[arg-type]
-
-
-@njit(cache=True, inline="always")
-def _n_nu(u, v, r, p):  # pragma: no cover - compiled
-    """n(ν) = C(ν)ν + D(ν)ν from the packed parameters (layout PACKED_FIELDS)."""
-    au = abs(u)
-    av = abs(v)
-    ar = abs(r)
-    M11 = p[9]
-    M22 = p[10]
-    M23 = p[11]
-    d11 = -p[12] - p[13] * au - p[14] * u * u
-    d22 = -p[15] - p[16] * av - p[17] * ar
-    d23 = -p[18] - p[19] * av - p[20] * ar
-    d32 = -p[21] - p[22] * av - p[23] * ar
-    d33 = -p[24] - p[25] * av - p[26] * ar
-    c13 = -(M22 * v + M23 * r)
-    c23 = M11 * u
-    n0 = c13 * r + d11 * u
-    n1 = c23 * r + d22 * v + d23 * r
-    n2 = -c13 * u - c23 * v + d32 * v + d33 * r
-    return n0, n1, n2
 
 
 @njit(cache=True)

@@ -53,7 +53,7 @@ from scipy.linalg import solve_discrete_are
 from scipy.stats import chi2
 
 from asvtwin.errors import ParameterError, StateError
-from asvtwin.observer.disturbance import _n_nu
+from asvtwin.vessel.kernels import hydrodynamic_force as _n_nu
 from asvtwin.vessel.params import VesselParams
 
 __all__ = [

@@ -20,13 +20,8 @@ __all__ = ["actuator_batch", "rhs_batch", "rk4_batch", "step_batch"]
 
 
 @njit(cache=True, inline="always")
-def _rhs(x0, x1, psi, u, v, r, tu, tv, tr, p):  # pragma: no cover - compiled
-    # eq. η̇ = R(ψ) ν
-    c = math.cos(psi)
-    s = math.sin(psi)
-    dx = c * u - s * v
-    dy = s * u + c * v
-    dpsi = r
+def hydrodynamic_force(u, v, r, p):  # pragma: no cover - compiled
+    """n(ν) = C(ν)ν + D(ν)ν from packed parameters (layout ``PACKED_FIELDS``)."""
     au = abs(u)
     av = abs(v)
     ar = abs(r)
@@ -42,10 +37,25 @@ def _rhs(x0, x1, psi, u, v, r, tu, tv, tr, p):  # pragma: no cover - compiled
     # C(ν)ν with c13 = -(M22 v + M23 r), c23 = M11 u (skew-symmetric)
     c13 = -(M22 * v + M23 * r)
     c23 = M11 * u
-    # rhs = τ + τ_d − C(ν)ν − D(ν)ν
-    f0 = tu - c13 * r - d11 * u
-    f1 = tv - c23 * r - (d22 * v + d23 * r)
-    f2 = tr + c13 * u + c23 * v - (d32 * v + d33 * r)
+    n0 = c13 * r + d11 * u
+    n1 = c23 * r + d22 * v + d23 * r
+    n2 = -c13 * u - c23 * v + d32 * v + d33 * r
+    return n0, n1, n2
+
+
+@njit(cache=True, inline="always")
+def _rhs(x0, x1, psi, u, v, r, tu, tv, tr, p):  # pragma: no cover - compiled
+    # eq. η̇ = R(ψ) ν
+    c = math.cos(psi)
+    s = math.sin(psi)
+    dx = c * u - s * v
+    dy = s * u + c * v
+    dpsi = r
+    # eq. (dynamics): M ν̇ = τ + τ_d − C(ν)ν − D(ν)ν
+    n0, n1, n2 = hydrodynamic_force(u, v, r, p)
+    f0 = tu - n0
+    f1 = tv - n1
+    f2 = tr - n2
     du = p[0] * f0 + p[1] * f1 + p[2] * f2
     dv = p[3] * f0 + p[4] * f1 + p[5] * f2
     dr = p[6] * f0 + p[7] * f1 + p[8] * f2
