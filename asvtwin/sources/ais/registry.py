@@ -1,0 +1,319 @@
+"""The target registry: one record per MMSI, dead reckoning between irregular AIS reports.
+
+The paper's descriptive twin maps "the position and motion of other commercial ships" from a
+real-time AIS stream and extrapolates their motion between reports, which arrive at irregular
+intervals ("Capability Level 1: Descriptive"). :class:`TargetRegistry` keeps, per MMSI, the
+latest dynamic report, the merged static data and the report age, in fixed-capacity numpy
+arrays, and answers :meth:`TargetRegistry.extrapolate` with plain arrays for the twin, the
+tracker and the viewer.
+
+Dead reckoning from the last report at time :math:`t_k` with speed :math:`U`, course
+:math:`\\chi` and rate of turn :math:`\\omega` (when reported), over :math:`\\Delta t = t - t_k`:
+
+.. math::
+
+    \\omega = 0:\\quad p(t) = p_k + U\\,\\Delta t\\,(\\cos\\chi, \\sin\\chi)
+
+    \\omega \\ne 0:\\quad p(t) = p_k + \\frac{U}{\\omega}
+        \\big(\\sin(\\chi + \\omega\\tau) - \\sin\\chi,\\; \\cos\\chi - \\cos(\\chi + \\omega\\tau)\\big)
+        + U (\\Delta t - \\tau) (\\cos(\\chi + \\omega\\tau), \\sin(\\chi + \\omega\\tau))
+
+with :math:`\\tau = \\min(\\Delta t, T_{rot})`: the turn is trusted for ``rot_horizon_s`` only,
+then the target runs straight. A target is *stale* once its age exceeds ``stale_factor`` times
+its nominal reporting interval (ITU-R M.1371: class A 2-10 s under way, 3 min at anchor or
+moored; class B 30 s, 3 min below 2 kn), and *evicted* after ``evict_after_s``. Memory is
+bounded by ``capacity`` whatever the feed does: when full, stale targets go first, then the
+oldest.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from asvtwin.errors import ParameterError
+from asvtwin.sources.ais.reports import AisReport, AisStatic, ReportBatch
+
+__all__ = ["TargetRegistry", "TargetSnapshot", "nominal_report_interval_s"]
+
+_F8 = NDArray[np.float64]
+_KN = 1852.0 / 3600.0
+
+
+def nominal_report_interval_s(sog_m_s: _F8, class_b: NDArray[np.bool_],
+                              nav_status: NDArray[np.int64]) -> _F8:
+    """Nominal AIS reporting interval [s] (ITU-R M.1371-5, Table 1; class B "CS" units).
+
+    Parameters
+    ----------
+    sog_m_s : ndarray
+        Speed over ground [m/s]; NaN (unknown) counts as under way.
+    class_b : ndarray of bool
+        True for class B transponders.
+    nav_status : ndarray of int
+        Navigational status; 1 (at anchor) and 5 (moored) report every 3 min.
+    """
+    sog_kn = np.nan_to_num(np.asarray(sog_m_s, dtype=np.float64) / _KN, nan=10.0)
+    a = np.where(sog_kn > 23.0, 2.0, np.where(sog_kn > 14.0, 6.0, 10.0))
+    a = np.where((sog_kn <= 3.0) & ((nav_status == 1) | (nav_status == 5)), 180.0, a)
+    b = np.where(sog_kn > 2.0, 30.0, 180.0)
+    return np.where(class_b, b, a)
+
+
+@dataclass(frozen=True)
+class TargetSnapshot:
+    """All targets at one time, extrapolated; plain arrays, row i = one vessel.
+
+    Attributes
+    ----------
+    t_s : float
+        Simulation time of the snapshot [s].
+    mmsi : ndarray of int64, (n,)
+    position_m : ndarray, (n, 2)
+        Dead-reckoned ``(north, east)`` [m], NED.
+    velocity_m_s : ndarray, (n, 2)
+        Velocity over ground ``(north, east)`` [m/s]; zero where unknown.
+    velocity_known : ndarray of bool, (n,)
+        False when SOG or COG was not available.
+    heading_rad : ndarray, (n,)
+        Heading [rad] (course where the heading is unknown, 0 where both are).
+    age_s : ndarray, (n,)
+        Time since the last report [s].
+    stale : ndarray of bool, (n,)
+        Age beyond ``stale_factor`` reporting intervals.
+    static : tuple
+        :class:`AisStatic` or None per row.
+    """
+
+    t_s: float
+    mmsi: NDArray[np.int64]
+    position_m: _F8
+    velocity_m_s: _F8
+    velocity_known: NDArray[np.bool_]
+    heading_rad: _F8
+    age_s: _F8
+    stale: NDArray[np.bool_]
+    static: tuple[AisStatic | None, ...]
+
+    def __len__(self) -> int:
+        return int(self.mmsi.shape[0])
+
+
+class TargetRegistry:
+    """Latest state of every AIS target, with bounded memory and dead reckoning.
+
+    Parameters
+    ----------
+    capacity : int
+        Most targets held at once.
+    epoch_unix_s : float
+        UNIX time of simulation time 0 [s]; times in and out of the registry are simulation
+        seconds ``t_unix_s - epoch_unix_s``.
+    stale_factor : float
+        A target is stale after this many nominal reporting intervals (at least
+        ``min_stale_s``).
+    min_stale_s : float
+        Lower bound of the stale age [s].
+    evict_after_s : float
+        Targets older than this are removed [s].
+    rot_horizon_s : float
+        How long a reported rate of turn is extrapolated [s] (0 disables ROT).
+    """
+
+    def __init__(self, *, capacity: int = 4096, epoch_unix_s: float = 0.0,
+                 stale_factor: float = 3.0, min_stale_s: float = 30.0,
+                 evict_after_s: float = 1200.0, rot_horizon_s: float = 60.0) -> None:
+        if capacity < 1:
+            raise ParameterError(f"TargetRegistry: capacity must be >= 1, actually: {capacity}")
+        for name, v in (("stale_factor", stale_factor), ("min_stale_s", min_stale_s),
+                        ("evict_after_s", evict_after_s), ("rot_horizon_s", rot_horizon_s)):
+            if not (math.isfinite(v) and v >= 0):
+                raise ParameterError(f"TargetRegistry: {name} must be finite and >= 0, "
+                                     f"actually: {v}")
+        self.capacity = int(capacity)
+        self.epoch_unix_s = float(epoch_unix_s)
+        self.stale_factor = float(stale_factor)
+        self.min_stale_s = float(min_stale_s)
+        self.evict_after_s = float(evict_after_s)
+        self.rot_horizon_s = float(rot_horizon_s)
+        c = self.capacity
+        self._mmsi = np.zeros(c, dtype=np.int64)
+        self._active = np.zeros(c, dtype=np.bool_)
+        self._t = np.zeros(c)
+        self._p = np.zeros((c, 2))
+        self._sog = np.zeros(c)
+        self._cog = np.zeros(c)
+        self._vel_ok = np.zeros(c, dtype=np.bool_)
+        self._hdg = np.zeros(c)
+        self._rot = np.zeros(c)
+        self._class_b = np.zeros(c, dtype=np.bool_)
+        self._nav = np.full(c, -1, dtype=np.int64)
+        self._slot: dict[int, int] = {}
+        self._free = list(range(c - 1, -1, -1))
+        self._static: dict[int, AisStatic] = {}
+        self.evicted = 0
+        self.ignored_older = 0
+
+    def __len__(self) -> int:
+        return len(self._slot)
+
+    def __contains__(self, mmsi: int) -> bool:
+        return mmsi in self._slot
+
+    # ----------------------------------------------------------------- updates
+    def update(self, report: AisReport) -> None:
+        """Take one dynamic report (a convenience over :meth:`update_batch`)."""
+        self.update_batch(ReportBatch.from_reports([report]))
+
+    def update_static(self, static: AisStatic) -> None:
+        """Merge static data (24A and 24B arrive separately); bounded to 2 x capacity."""
+        old = self._static.pop(static.mmsi, None)
+        self._static[static.mmsi] = static if old is None else old.merged(static)
+        if len(self._static) > 2 * self.capacity:
+            for m in list(self._static)[: len(self._static) - 2 * self.capacity]:
+                if m not in self._slot:
+                    del self._static[m]
+
+    def ingest(self, messages: Iterable[AisReport | AisStatic]) -> None:
+        """Take a mixed sequence of reports and static records, in order."""
+        reports: list[AisReport] = []
+        for m in messages:
+            if isinstance(m, AisStatic):
+                self.update_static(m)
+            else:
+                reports.append(m)
+        if reports:
+            self.update_batch(ReportBatch.from_reports(reports))
+
+    def update_batch(self, batch: ReportBatch) -> None:
+        """Take a batch of dynamic reports and its static records (vectorised)."""
+        for record in batch.static:
+            self.update_static(record)
+        n = len(batch)
+        if n == 0:
+            return
+        # the last report per MMSI in the batch wins (the pipeline keeps time order per MMSI)
+        uniq, first_rev = np.unique(batch.mmsi[::-1], return_index=True)
+        rows = n - 1 - first_rev
+        t = batch.t_unix_s[rows] - self.epoch_unix_s
+        if len(uniq) > self.capacity:  # more vessels in one batch than room: newest win
+            newest = np.argsort(t)[-self.capacity:]
+            uniq, rows, t = uniq[newest], rows[newest], t[newest]
+        slots = np.empty(len(uniq), dtype=np.int64)
+        keep = np.ones(len(uniq), dtype=np.bool_)
+        get = self._slot.get
+        t_list = t.tolist()
+        for i, m in enumerate(uniq.tolist()):
+            s = get(m)
+            if s is None:
+                s = self._allocate(m, t_list[i])
+            elif t_list[i] < self._t[s]:
+                keep[i] = False
+                self.ignored_older += 1
+            else:
+                self._t[s] = t_list[i]  # claim the slot now: an eviction below must not free it
+            slots[i] = s
+        if not keep.all():
+            rows, slots, t = rows[keep], slots[keep], t[keep]
+        sog = batch.sog_m_s[rows]
+        cog = batch.cog_rad[rows]
+        hdg = batch.heading_rad[rows]
+        rot = batch.rot_rad_s[rows]
+        vel_ok = ~(np.isnan(sog) | np.isnan(cog))
+        self._mmsi[slots] = batch.mmsi[rows]
+        self._active[slots] = True
+        self._t[slots] = t
+        self._p[slots, 0] = batch.north_m[rows]
+        self._p[slots, 1] = batch.east_m[rows]
+        self._vel_ok[slots] = vel_ok
+        self._sog[slots] = np.where(vel_ok, sog, 0.0)
+        self._cog[slots] = np.where(vel_ok, cog, 0.0)
+        # heading: reported, else course, else 0 (never NaN in the state)
+        self._hdg[slots] = np.where(np.isnan(hdg), np.where(np.isnan(cog), 0.0, cog), hdg)
+        self._rot[slots] = np.where(np.isnan(rot), 0.0, rot)
+        self._class_b[slots] = np.isin(batch.msg_type[rows], (18, 19))
+        self._nav[slots] = batch.nav_status[rows]
+
+    def _allocate(self, mmsi: int, t_s: float) -> int:
+        if not self._free:
+            self.evict(t_s)
+        if not self._free:  # still full: drop the oldest tenth
+            idx = np.flatnonzero(self._active)
+            k = max(1, len(idx) // 10)
+            oldest = idx[np.argpartition(self._t[idx], k - 1)[:k]]
+            self._remove(oldest)
+        s = self._free.pop()
+        self._slot[mmsi] = s
+        self._mmsi[s] = mmsi
+        self._active[s] = True
+        self._t[s] = t_s
+        return s
+
+    def _remove(self, slots: NDArray[np.int64]) -> None:
+        for s in slots.tolist():
+            m = int(self._mmsi[s])
+            del self._slot[m]
+            self._static.pop(m, None)
+            self._free.append(s)
+        self._active[slots] = False
+        self.evicted += len(slots)
+
+    def evict(self, t_s: float) -> int:
+        """Remove targets older than ``evict_after_s`` at time ``t_s``; return how many."""
+        old = np.flatnonzero(self._active & (t_s - self._t > self.evict_after_s))
+        if len(old):
+            self._remove(old)
+        return len(old)
+
+    # ----------------------------------------------------------------- queries
+    def static(self, mmsi: int) -> AisStatic | None:
+        """Merged static data of one vessel, if any was received."""
+        return self._static.get(mmsi)
+
+    def extrapolate(self, t_s: float, *, evict: bool = True) -> TargetSnapshot:
+        """Dead-reckon every target to simulation time ``t_s`` (see module docstring).
+
+        Parameters
+        ----------
+        t_s : float
+            Simulation time [s]. Targets reported after ``t_s`` are shown where they were
+            reported (no extrapolation backwards).
+        evict : bool
+            Remove targets older than ``evict_after_s`` first.
+        """
+        if evict:
+            self.evict(t_s)
+        idx = np.flatnonzero(self._active)
+        age = t_s - self._t[idx]
+        dt = np.maximum(age, 0.0)
+        U = self._sog[idx]
+        chi = self._cog[idx]
+        w = self._rot[idx] if self.rot_horizon_s > 0 else np.zeros(len(idx))
+        turning = np.abs(w) > 1e-5
+        tau = np.where(turning, np.minimum(dt, self.rot_horizon_s), 0.0)
+        chi_end = chi + w * tau
+        w_safe = np.where(turning, w, 1.0)
+        # arc for tau (constant turn), then straight along chi_end
+        arc_n = np.where(turning, U / w_safe * (np.sin(chi_end) - np.sin(chi)), 0.0)
+        arc_e = np.where(turning, U / w_safe * (np.cos(chi) - np.cos(chi_end)), 0.0)
+        run = U * (dt - tau)
+        pos = self._p[idx].copy()
+        pos[:, 0] += arc_n + run * np.cos(chi_end)
+        pos[:, 1] += arc_e + run * np.sin(chi_end)
+        vel = np.column_stack([U * np.cos(chi_end), U * np.sin(chi_end)])
+        interval = nominal_report_interval_s(U, self._class_b[idx], self._nav[idx])
+        stale = age > np.maximum(self.stale_factor * interval, self.min_stale_s)
+        mmsi = self._mmsi[idx].copy()
+        return TargetSnapshot(
+            t_s=float(t_s), mmsi=mmsi, position_m=pos, velocity_m_s=vel,
+            velocity_known=self._vel_ok[idx].copy(),
+            heading_rad=(self._hdg[idx] + w * tau + np.pi) % (2 * np.pi) - np.pi,
+            age_s=age, stale=stale,
+            static=tuple(self._static.get(m) for m in mmsi.tolist()),
+        )
+
+    snapshot = extrapolate

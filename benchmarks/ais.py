@@ -1,0 +1,204 @@
+"""AIS ingest benchmark: prints one JSON object.
+
+- ``lines_per_s``: the whole ingest path, decode -> validate -> registry -> store (SQLite file
+  in WAL mode), over a large synthetic log (fjord traffic x10 vessels, tag blocks, 5 %
+  duplicate receptions), median of ``--repeats`` runs, each on fresh objects;
+- ``pyais_decode_lines_per_s``: bare pyais (``IterMessages`` + ``decode()``) over the same
+  lines in the same run, and the ``overhead_ratio`` between the two (also as the median of
+  back-to-back pairs and from the best runs, which are steadier on a shared machine), with and
+  without the SQLite store;
+- ``replay_memory``: traced memory (tracemalloc) of the registry alone and of everything
+  (pipeline, registry, source) sampled every 5 min
+  of stream time during a 1-hour file replay paced at 100x (36 s of wall time; ``--quick``
+  replays 10 min), plus the peak under MMSI churn (100 000 distinct MMSIs, capacity 4096).
+
+Nothing connects to the network. Run: ``python benchmarks/ais.py [--quick]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import dataclasses
+import json
+import logging
+import statistics
+import tempfile
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+from pyais.stream import IterMessages
+
+from asvtwin.geo import default_scene
+from asvtwin.sources.ais import (
+    AisPipeline,
+    FileReplaySource,
+    ReportBatch,
+    SyntheticTraffic,
+    TargetRegistry,
+    default_fleet,
+)
+from asvtwin.sources.history import SqliteHistory
+
+START_UNIX_S = 1_732_100_400.0  # 2024-11-20 11:00 UTC
+
+
+def big_fleet(copies: int) -> list:
+    """The default fleet repeated with new MMSIs and spread start positions."""
+    fleet = []
+    for k in range(copies):
+        for v in default_fleet():
+            fleet.append(dataclasses.replace(
+                v, mmsi=v.mmsi + 1000 * k, name=f"{v.name[:16]} {k}",
+                start_fraction=(v.start_fraction + 0.097 * k) % 1.0))
+    return fleet
+
+
+def make_log(duration_s: float, copies: int, seed: int = 7) -> list[bytes]:
+    traffic = SyntheticTraffic(big_fleet(copies), rng=np.random.default_rng(seed),
+                               start_unix_s=START_UNIX_S, duplicate_probability=0.05)
+    return [line.encode("ascii") for line in traffic.lines(duration_s)]
+
+
+def ingest(lines: list[bytes], db_path: Path | None, chunk: int = 1024) -> tuple[float, int]:
+    """Time decode -> validate -> registry -> store (skipped when db_path is None)."""
+    scene = default_scene()
+    pipeline = AisPipeline(scene)
+    registry = TargetRegistry(epoch_unix_s=START_UNIX_S)
+    store = SqliteHistory(db_path) if db_path is not None else None
+    n = 0
+    t0 = time.perf_counter()
+    for i in range(0, len(lines), chunk):
+        batch = pipeline.feed_batch(lines[i:i + chunk])
+        registry.update_batch(batch)
+        if store is not None:
+            store.append_batch(batch)
+        n += len(batch)
+    dt = time.perf_counter() - t0
+    if store is not None:
+        store.close()
+    return dt, n
+
+
+def bare_pyais(lines: list[bytes]) -> float:
+    t0 = time.perf_counter()
+    for msg in IterMessages(lines):
+        msg.decode()
+    return time.perf_counter() - t0
+
+
+def replay_memory(lines: list[bytes], log_path: Path, duration_s: float) -> dict[str, object]:
+    log_path.write_bytes(b"\n".join(lines) + b"\n")
+    pipeline = AisPipeline(default_scene())
+    registry = TargetRegistry(epoch_unix_s=START_UNIX_S)
+    samples: list[int] = []
+    registry_bytes: list[int] = []
+    only_registry = [tracemalloc.Filter(True, "*/sources/ais/registry.py")]
+
+    async def run() -> float:
+        src = FileReplaySource(log_path, speed=100.0, pipeline=pipeline)
+        next_mark = START_UNIX_S
+        t0 = time.perf_counter()
+        async for batch in src.batches():
+            registry.update_batch(batch)
+            t = pipeline.latest_time_unix_s
+            if t is not None and t >= next_mark:
+                registry.extrapolate(t - START_UNIX_S)
+                samples.append(tracemalloc.get_traced_memory()[0])
+                snap = tracemalloc.take_snapshot().filter_traces(only_registry)
+                registry_bytes.append(sum(s.size for s in snap.statistics("filename")))
+                next_mark += 300.0
+        return time.perf_counter() - t0
+
+    tracemalloc.start()
+    wall = asyncio.run(run())
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    # churn: 100 000 distinct MMSIs through a 4096-slot registry
+    tracemalloc.start()
+    reg = TargetRegistry(capacity=4096)
+    rng = np.random.default_rng(1)
+    base = None
+    for k in range(100):
+        m = np.arange(k * 1000, (k + 1) * 1000, dtype=np.int64) + 200_000_000
+        z = np.zeros(1000)
+        b = ReportBatch(m, z + k * 10.0, np.ones(1000, dtype=np.int64), rng.normal(0, 1e3, 1000),
+                        rng.normal(0, 1e3, 1000), z, z, z + 5.0, z, z, z,
+                        np.zeros(1000, dtype=np.int64), (None,) * 1000)
+        reg.update_batch(b)
+        if k == 10:
+            base = tracemalloc.get_traced_memory()[0]
+    churn_end, churn_peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    first = samples[1] if len(samples) > 1 else samples[0]
+    return {
+        "stream_duration_s": duration_s,
+        "speed": 100.0,
+        "wall_s": round(wall, 2),
+        "targets": len(registry),
+        "registry_traced_bytes_every_300_s": registry_bytes,
+        "all_traced_bytes_every_300_s": samples,
+        "traced_growth_after_first_5_min_bytes": samples[-1] - first,
+        "traced_peak_bytes": peak,
+        "churn_100k_mmsi_capacity_4096": {
+            "targets": len(reg), "evicted": reg.evicted,
+            "traced_bytes_after_10k": base, "traced_bytes_after_100k": churn_end,
+            "traced_peak_bytes": churn_peak,
+        },
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="smaller log, 10-minute replay")
+    ap.add_argument("--repeats", type=int, default=5)
+    args = ap.parse_args()
+    logging.disable(logging.WARNING)  # the log's duplicates would be reported once each
+    copies = 10
+    log_s = 1800.0 if args.quick else 4 * 3600.0
+    t0 = time.perf_counter()
+    lines = make_log(log_s, copies)
+    gen_s = time.perf_counter() - t0
+    with tempfile.TemporaryDirectory() as tmp:
+        ingest(lines[:2000], Path(tmp) / "warm.sqlite")  # warm-up (imports, numba, caches)
+        bare_pyais(lines[:2000])
+        ours, nostore, bare, n_reports = [], [], [], 0
+        for k in range(args.repeats):  # interleaved, so each pair sees the same machine load
+            dt, n_reports = ingest(lines, Path(tmp) / f"run{k}.sqlite")
+            ours.append(dt)
+            bare.append(bare_pyais(lines))
+            nostore.append(ingest(lines, None)[0])
+        replay_s = 600.0 if args.quick else 3600.0
+        hour = make_log(replay_s, copies, seed=11)
+        memory = replay_memory(hour, Path(tmp) / "hour.nmea", replay_s)
+    n = len(lines)
+    lps = n / statistics.median(ours)
+    pyais_lps = n / statistics.median(bare)
+    print(json.dumps({
+        "lines": n,
+        "reports": n_reports,
+        "vessels": 5 * copies,
+        "log_generation_s": round(gen_s, 2),
+        "lines_per_s": round(lps),
+        "lines_per_s_slowest_run": round(n / max(ours)),
+        "pyais_decode_lines_per_s": round(pyais_lps),
+        "overhead_ratio": round(pyais_lps / lps, 3),
+        "overhead_ratio_median_of_pairs": round(statistics.median(
+            o / b for o, b in zip(ours, bare)), 3),
+        "overhead_ratio_best_runs": round(min(ours) / min(bare), 3),
+        "without_store": {
+            "lines_per_s": round(n / statistics.median(nostore)),
+            "overhead_ratio_median_of_pairs": round(statistics.median(
+                o / b for o, b in zip(nostore, bare)), 3),
+            "overhead_ratio_best_runs": round(min(nostore) / min(bare), 3),
+        },
+        "goal": {"lines_per_s": 20000, "overhead_ratio_max": 1.5},
+        "repeats": args.repeats,
+        "replay_memory": memory,
+    }, indent=1))
+
+
+if __name__ == "__main__":
+    main()

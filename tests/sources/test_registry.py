@@ -1,0 +1,173 @@
+"""Target registry: dead reckoning, the error bound of a turning ship, staleness, memory."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from asvtwin.sources.ais import (
+    AisPipeline,
+    AisReport,
+    AisStatic,
+    ReportBatch,
+    TargetRegistry,
+    default_fleet,
+    nominal_report_interval_s,
+    to_tracker_measurement,
+)
+from asvtwin.vessel import BatchSimulator
+
+from .conftest import T0, line, report
+
+
+def test_constant_velocity_dead_reckoning_by_hand() -> None:
+    reg = TargetRegistry(epoch_unix_s=T0)
+    r = report(sog_m_s=5.0, cog_deg=45.0, rot_rad_s=None)
+    reg.update(r)
+    snap = reg.extrapolate(20.0)
+    # 5 m/s for 20 s on 045: 100 m, i.e. 70.7107 m north and east
+    assert snap.position_m[0, 0] - r.north_m == pytest.approx(70.71067811865476, abs=1e-9)
+    assert snap.position_m[0, 1] - r.east_m == pytest.approx(70.71067811865476, abs=1e-9)
+    assert snap.velocity_m_s[0] == pytest.approx([3.5355339, 3.5355339])
+    assert snap.age_s[0] == 20.0 and bool(snap.velocity_known[0])
+
+
+def test_rate_of_turn_arc_then_straight() -> None:
+    reg = TargetRegistry(epoch_unix_s=T0, rot_horizon_s=30.0)
+    r = report(sog_m_s=5.0, cog_deg=0.0, heading_deg=0.0, rot_rad_s=0.01)
+    reg.update(r)
+    s30 = reg.extrapolate(30.0)
+    # arc of radius U/ω = 500 m through 0.3 rad: 500 sin 0.3 north, 500 (1 - cos 0.3) east
+    assert s30.position_m[0, 0] - r.north_m == pytest.approx(500 * math.sin(0.3), abs=1e-9)
+    assert s30.position_m[0, 1] - r.east_m == pytest.approx(500 * (1 - math.cos(0.3)), abs=1e-9)
+    assert s30.heading_rad[0] == pytest.approx(0.3)
+    s40 = reg.extrapolate(40.0)  # 10 s more, straight on 0.3 rad
+    step = s40.position_m[0] - s30.position_m[0]
+    assert step == pytest.approx([50 * math.cos(0.3), 50 * math.sin(0.3)], abs=1e-9)
+    # the same report without ROT extrapolation
+    reg0 = TargetRegistry(epoch_unix_s=T0, rot_horizon_s=0.0)
+    reg0.update(r)
+    assert reg0.extrapolate(30.0).position_m[0] - [r.north_m, r.east_m] == pytest.approx([150, 0])
+
+
+def _turning_truth(dt_s: float = 0.5, minutes: float = 6.0):
+    """A fjord ferry (CyberShip II x70) in a steady port turn, states every dt_s."""
+    ferry = default_fleet()[0]
+    p = ferry.params()
+    sim = BatchSimulator(p, [[0.0, 0.0, 0.0, 3.5, 0.0, 0.0]], dt_s=dt_s)
+    U = 3.5
+    tau_u = -(p.X_u * U + p.X_uu * U * U + p.X_uuu * U**3)
+    tau_r = 0.25 * p.actuators.tau_min[2]
+    states = [sim.state[0]]
+    for _ in range(int(minutes * 60 / dt_s)):
+        states.append(sim.step([tau_u, 0.0, tau_r])[0])
+    return np.array(states)
+
+
+def test_extrapolation_error_bound_for_a_turning_vessel() -> None:
+    """Reports every 10 s from a turning ship; dead reckoning in between.
+
+    Constant velocity misses the arc by at most U |r| τ² / 2 (plus AIS resolution); using the
+    reported rate of turn it does much better.
+    """
+    dt = 0.5
+    x = _turning_truth(dt)
+    x = x[int(120 / dt):]  # after the turn has settled
+    frame_lat, frame_lon = 63.46, 10.40
+    from asvtwin.geo import default_scene
+
+    frame = default_scene().frame
+    n0, e0 = frame.to_ned(frame_lat, frame_lon)
+    pos = x[:, :2] + [float(n0), float(e0)]
+    vn = np.cos(x[:, 2]) * x[:, 3] - np.sin(x[:, 2]) * x[:, 4]
+    ve = np.sin(x[:, 2]) * x[:, 3] + np.cos(x[:, 2]) * x[:, 4]
+    U = float(np.mean(np.hypot(vn, ve)))
+    r_abs = float(np.mean(np.abs(x[:, 5])))
+    assert r_abs > math.radians(0.3)  # a real turn: more than 18 deg/min
+    lat, lon = frame.to_wgs84(pos[:, 0], pos[:, 1])
+    every = int(10 / dt)
+    errs = {"cv": [], "rot": []}
+    for horizon, key in ((0.0, "cv"), (60.0, "rot")):
+        pipe = AisPipeline()
+        reg = TargetRegistry(epoch_unix_s=T0, rot_horizon_s=horizon)
+        for k in range(0, len(x) - every, every):
+            truth = AisReport(257000001, T0 + k * dt, 1, float(pos[k, 0]), float(pos[k, 1]),
+                              float(lat[k]), float(lon[k]), float(np.hypot(vn[k], ve[k])),
+                              float(np.arctan2(ve[k], vn[k])), float(x[k, 2]), float(x[k, 5]), 0)
+            reg.update_batch(pipe.feed(line(truth)))
+            for j in range(1, every):
+                snap = reg.extrapolate(k * dt + j * dt)
+                errs[key].append((j * dt, float(np.hypot(*(snap.position_m[0] - pos[k + j])))))
+    cv = np.array(errs["cv"])
+    rot = np.array(errs["rot"])
+    bound = 0.5 * U * r_abs * cv[:, 0] ** 2 + 0.5  # arc vs chord, + AIS resolution
+    assert np.all(cv[:, 1] <= 1.1 * bound)
+    assert cv[:, 1].max() > 0.5 * bound.max()  # the bound is tight, not vacuous
+    assert rot[:, 1].max() < 0.35 * cv[:, 1].max()
+
+
+def test_stale_by_reporting_interval_and_eviction() -> None:
+    reg = TargetRegistry(epoch_unix_s=T0, evict_after_s=600.0)
+    reg.update(report(257000001, sog_m_s=5.0))  # class A under way: 10 s
+    reg.update(report(257000002, sog_m_s=3.0, msg_type=18))  # class B: 30 s
+    reg.update(report(257000003, sog_m_s=0.0, nav_status=5))  # moored: 180 s
+    snap = reg.extrapolate(60.0)
+    assert dict(zip(snap.mmsi.tolist(), snap.stale.tolist())) == {
+        257000001: True, 257000002: False, 257000003: False}
+    snap = reg.extrapolate(100.0)
+    assert snap.stale.tolist() == [True, True, False]
+    assert len(reg.extrapolate(599.0)) == 3
+    assert len(reg.extrapolate(601.0)) == 0 and reg.evicted == 3
+
+
+def test_nominal_intervals() -> None:
+    kn = 1852 / 3600
+    got = nominal_report_interval_s(np.array([25, 18, 8, 0, 8, 1, np.nan]) * kn,
+                                    np.array([0, 0, 0, 0, 1, 1, 0], dtype=bool),
+                                    np.array([0, 0, 0, 1, -1, -1, -1]))
+    assert got.tolist() == [2.0, 6.0, 10.0, 180.0, 30.0, 180.0, 10.0]
+
+
+def test_older_report_does_not_overwrite() -> None:
+    reg = TargetRegistry(epoch_unix_s=T0)
+    reg.update(report(t=T0 + 10))
+    reg.update(report(t=T0, lat=63.47))
+    assert reg.ignored_older == 1
+    assert reg.extrapolate(10.0).age_s[0] == 0.0
+
+
+def test_memory_is_bounded_under_mmsi_churn() -> None:
+    reg = TargetRegistry(capacity=100, evict_after_s=1e9)
+    rng = np.random.default_rng(3)
+    for k in range(50):
+        m = np.arange(200_000_000 + 1000 * k, 200_000_000 + 1000 * (k + 1), dtype=np.int64)
+        z = np.zeros(1000)
+        reg.update_batch(ReportBatch(m, z + k, np.ones(1000, dtype=np.int64),
+                                     rng.normal(size=1000), rng.normal(size=1000), z, z, z, z, z,
+                                     z, np.zeros(1000, dtype=np.int64), (None,) * 1000))
+        for i in range(0, 1000, 97):
+            reg.update_static(AisStatic(int(m[i]), float(k), 5, name=f"V{i}"))
+        assert len(reg) <= 100
+        assert len(reg._static) <= 200
+    assert reg.evicted == 49 * 100  # each batch brings 1000 new vessels; the newest 100 stay
+    snap = reg.extrapolate(50.0)
+    assert len(snap) == len(reg) and len(set(snap.mmsi.tolist())) == len(snap)
+    assert snap.mmsi.min() >= 200_049_000  # the newest batch won
+
+
+def test_tracker_measurement_fields() -> None:
+    m = to_tracker_measurement(report(t=T0 + 12.5), epoch_unix_s=T0)
+    get = m.__getitem__ if isinstance(m, dict) else lambda k: getattr(m, k)
+    assert get("mmsi") == 257000001 and get("t_s") == 12.5
+    assert get("sog_m_s") == 5.0 and get("cog_rad") == pytest.approx(math.pi / 4)
+
+
+def test_tracker_measurement_marks_not_available_as_the_tracker_expects() -> None:
+    tracking = pytest.importorskip("asvtwin.tracking")
+    if not hasattr(tracking, "AisMeasurement"):
+        pytest.skip("asvtwin.tracking has no AisMeasurement")
+    m = to_tracker_measurement(report(sog_m_s=None, cog_deg=None), epoch_unix_s=T0)
+    assert isinstance(m, tracking.AisMeasurement)
+    assert math.isnan(m.sog_m_s) and math.isnan(m.cog_rad)
