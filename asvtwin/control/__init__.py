@@ -1,0 +1,55 @@
+"""Control: the predictive safety filter (NMPC), its obstacles, terminal set and fallback.
+
+Examples
+--------
+>>> from asvtwin.control import SafetyFilter, PsfConfig, CircleObstacles
+>>> from asvtwin.vessel import cybership2
+>>> psf = SafetyFilter(cybership2(), config=PsfConfig(N=20, backend="casadi-ipopt"))
+>>> res = psf.filter([0, 0, 0, 0.3, 0, 0], [2.0, 0, 0],
+...                  CircleObstacles(centres=[[30.0, 0.0]], radii=[1.0]), t_s=0.0)
+>>> res.fallback, bool(abs(res.delta_u[0]) < 0.01)
+('none', True)
+"""
+
+from __future__ import annotations
+
+from asvtwin.control.backends import BACKENDS, available_backends
+from asvtwin.control.fallback import BackupPlan, Fallback
+from asvtwin.control.obstacles import (
+    CircleObstacles,
+    CoastSegments,
+    MovingObstacles,
+    Obstacles,
+    covariance_inflation,
+    lidar_circles,
+    stage_circles,
+)
+from asvtwin.control.psf import ActiveConstraint, FilterResult, PsfConfig, SafetyFilter
+from asvtwin.control.terminal_set import (
+    TerminalSet,
+    braking_input,
+    compute_terminal_set,
+    verify_invariance,
+)
+
+__all__ = [
+    "BACKENDS",
+    "ActiveConstraint",
+    "BackupPlan",
+    "CircleObstacles",
+    "CoastSegments",
+    "Fallback",
+    "FilterResult",
+    "MovingObstacles",
+    "Obstacles",
+    "PsfConfig",
+    "SafetyFilter",
+    "TerminalSet",
+    "available_backends",
+    "braking_input",
+    "compute_terminal_set",
+    "covariance_inflation",
+    "lidar_circles",
+    "stage_circles",
+    "verify_invariance",
+]

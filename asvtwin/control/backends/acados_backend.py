@@ -1,0 +1,278 @@
+"""acados backend: SQP-RTI with HPIPM on the same OCP (optional extra ``acados``).
+
+acados comes from the PyPI package ``comma-deps-acados`` (its shared libraries, the
+``acados_template`` Python interface and the ``t_renderer`` template tool). The solver's
+C code is generated and compiled with gcc once per problem (:meth:`OcpSpec.key`) into the
+cache directory and loaded from there afterwards: never rebuilt in a loop.
+
+Pitfalls handled here (REFERENCE §2): the environment variables acados needs are set from
+the ``acados`` module's paths; its libraries (which have no RPATH) are preloaded with
+``RTLD_GLOBAL``; one-sided constraints get moderate finite upper bounds, never 1e9; the
+QP status is checked by us, since RTI reports success whatever the QP did; and, because
+one RTI step is not a converged solve, the filter re-simulates every plan on the model
+(:class:`asvtwin.control.psf.SafetyFilter` does this for every backend) and the backend
+runs extra RTI steps while the step is still large.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import io
+import logging
+import os
+import time
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+from asvtwin.control.backends.base import RawSolution
+from asvtwin.control.backends.ocp import (
+    OcpSpec,
+    cache_dir,
+    continuous_dynamics,
+    path_constraints,
+    terminal_constraints,
+)
+from asvtwin.errors import MissingExtraError, SolverError
+
+__all__ = ["AcadosBackend", "acados_available"]
+
+log = logging.getLogger(__name__)
+
+#: Finite upper bound of the one-sided obstacle constraints [m] (never 1e9: REFERENCE §2).
+_H_UPPER = 1e5
+
+
+def _setup_environment() -> Any:
+    """Import acados, set its environment variables and preload its libraries."""
+    try:
+        import acados  # type: ignore[import-not-found]
+    except ImportError as exc:  # pragma: no cover - depends on the extra
+        raise MissingExtraError("comma-deps-acados", "acados") from exc
+    os.environ.setdefault("ACADOS_SOURCE_DIR", acados.DIR)
+    os.environ.setdefault("ACADOS_PYTHON_INTERFACE_PATH", acados.TEMPLATE_DIR)
+    os.environ.setdefault("TERA_PATH", acados.TERA_PATH)
+    for lib in ("libblasfeo.so", "libhpipm.so", "libqpOASES_e.so", "libacados.so"):
+        path = os.path.join(acados.LIB_DIR, lib)
+        if os.path.exists(path):
+            ctypes.CDLL(path, mode=ctypes.RTLD_GLOBAL)
+    if not ca.has_nlpsol("ipopt"):
+        raise SolverError(
+            "the casadi in this environment has no IPOPT: comma-deps-acados's slim casadi "
+            "replaced the official wheel; install both in one command: "
+            "pip install comma-deps-acados casadi==3.8.2"
+        )
+    return acados
+
+
+def acados_available() -> bool:
+    """True when the ``acados`` extra is importable and casadi is still the full wheel."""
+    try:
+        _setup_environment()
+    except (MissingExtraError, SolverError, OSError):
+        return False
+    return True
+
+
+class AcadosBackend:
+    """SQP-RTI (HPIPM) on the safety filter's OCP.
+
+    Parameters
+    ----------
+    spec : OcpSpec
+        The problem.
+    rti_steps : int
+        Largest number of RTI steps per call (more are run only while the primal step
+        is larger than ``step_tol``).
+    step_tol : float
+        Infinity norm of the SQP step below which no further RTI step is taken.
+    """
+
+    def __init__(self, spec: OcpSpec, *, rti_steps: int = 1, step_tol: float = 1e-3) -> None:
+        _setup_environment()
+        from acados.acados_template import (  # type: ignore[import-not-found]
+            AcadosModel,
+            AcadosOcp,
+            AcadosOcpSolver,
+        )
+
+        self.spec = spec
+        self.name = "acados-rti"
+        self.rti_steps = int(rti_steps)
+        self.step_tol = float(step_tol)
+        s = spec
+        vessel = s.vessel
+        f = continuous_dynamics(vessel)
+        x = ca.SX.sym("x", 6)
+        u = ca.SX.sym("u", 3)
+        p = ca.SX.sym("p", s.n_p)
+        xdot = ca.SX.sym("xdot", 6)
+        model = AcadosModel()
+        model.name = f"asvtwin_psf_{s.key()}"
+        model.x, model.u, model.p, model.xdot = x, u, p, xdot
+        model.f_expl_expr = f(x, u, p[0:3])  # eq. (a), d̂ as parameter
+        model.f_impl_expr = xdot - model.f_expl_expr
+        model.con_h_expr = path_constraints(s)(x, p)  # eq. (e)
+        model.con_h_expr_e = terminal_constraints(s)(x, p)  # eq. (f), (g)
+
+        ocp = AcadosOcp()
+        ocp.model = model
+        ocp.dims.N = s.N
+        ocp.parameter_values = np.zeros(s.n_p)
+        # cost ‖u_k − u_L‖²_W: stage 0 full weight, later stages ε (set after creation)
+        ocp.cost.cost_type = "LINEAR_LS"
+        ocp.cost.cost_type_e = "LINEAR_LS"
+        ocp.cost.Vx = np.zeros((3, 6))
+        ocp.cost.Vu = np.eye(3)
+        ocp.cost.W = np.diag(s.W) * s.later_weight
+        ocp.cost.yref = np.zeros(3)
+        ocp.cost.Vx_e = np.zeros((0, 6))
+        ocp.cost.W_e = np.zeros((0, 0))
+        ocp.cost.yref_e = np.zeros(0)
+        # eq. (d): hard input bounds
+        ocp.constraints.lbu = np.asarray(s.u_lb, dtype=float)
+        ocp.constraints.ubu = np.asarray(s.u_ub, dtype=float)
+        ocp.constraints.idxbu = np.arange(3)
+        ocp.constraints.x0 = np.zeros(6)  # eq. (b)
+        # eq. (c): soft velocity bounds on stages 1..N
+        nu_max = np.asarray(s.nu_max, dtype=float)
+        for suffix in ("", "_e"):
+            setattr(ocp.constraints, "idxbx" + suffix, np.array([3, 4, 5]))
+            setattr(ocp.constraints, "lbx" + suffix, -nu_max)
+            setattr(ocp.constraints, "ubx" + suffix, nu_max)
+            setattr(ocp.constraints, "idxsbx" + suffix, np.arange(3))
+        nh, nh_e = s.n_h, s.n_h + 1
+        ocp.constraints.lh = np.zeros(nh)
+        ocp.constraints.uh = np.full(nh, _H_UPPER)
+        ocp.constraints.idxsh = np.arange(nh)
+        ocp.constraints.lh_e = np.zeros(nh_e)
+        ocp.constraints.uh_e = np.full(nh_e, _H_UPPER)
+        ocp.constraints.idxsh_e = np.arange(nh_e)
+        ns, ns_e = 3 + nh, 3 + nh_e
+        for suffix, n in (("", ns), ("_e", ns_e)):
+            setattr(ocp.cost, "zl" + suffix, np.full(n, s.slack_l1))
+            setattr(ocp.cost, "zu" + suffix, np.full(n, s.slack_l1))
+            setattr(ocp.cost, "Zl" + suffix, np.full(n, 2 * s.slack_l2))
+            setattr(ocp.cost, "Zu" + suffix, np.full(n, 2 * s.slack_l2))
+
+        opts = ocp.solver_options
+        opts.tf = s.N * s.dt_s
+        opts.integrator_type = "ERK"
+        opts.sim_method_num_stages = 4  # classic RK4, as the CasADi backend
+        opts.sim_method_num_steps = s.rk4_substeps
+        opts.nlp_solver_type = "SQP_RTI"
+        opts.hessian_approx = "GAUSS_NEWTON"
+        opts.qp_solver = "PARTIAL_CONDENSING_HPIPM"
+        opts.qp_solver_cond_N = max(1, s.N // 5)
+        opts.qp_solver_iter_max = 100
+        opts.qp_solver_warm_start = 1
+        opts.levenberg_marquardt = 1e-4
+        opts.print_level = 0
+
+        root = cache_dir() / f"acados_{s.key()}"
+        root.mkdir(parents=True, exist_ok=True)
+        ocp.code_export_directory = str(root / "c_generated_code")
+        json_file = str(root / "acados_ocp.json")
+        lib = root / "c_generated_code" / f"libacados_ocp_solver_{model.name}.so"
+        fresh = not lib.exists()
+        cwd = os.getcwd()
+        t0 = time.perf_counter()
+        try:
+            os.chdir(root)  # acados writes helper files into the working directory
+            with contextlib.redirect_stdout(io.StringIO()):
+                self._solver = AcadosOcpSolver(ocp, json_file=json_file,
+                                               generate=fresh, build=fresh, verbose=False)
+        except Exception as exc:
+            raise SolverError(f"building the acados solver in {root} failed: {exc}") from exc
+        finally:
+            os.chdir(cwd)
+        if fresh:
+            log.info("acados solver generated and compiled in %.1f s (%s)",
+                     time.perf_counter() - t0, root)
+        self._bind_fast_access(model.name)
+        W0 = np.diag(s.W)
+        self._solver.cost_set(0, "W", W0)
+        for k in range(1, s.N):
+            self._solver.cost_set(k, "W", W0 * s.later_weight)
+
+    def _bind_fast_access(self, model_name: str) -> None:
+        """Bind the C accessors once (acados_template re-declares argtypes on every
+        get/set call, which costs more than the QP at N = 50)."""
+        S = self._solver
+        lib = S.shared_lib
+        vp, ci, cc = ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p
+        self._out_set = lib.ocp_nlp_out_set
+        self._out_set.argtypes = [vp, vp, vp, ci, cc, vp]
+        self._out_get = lib.ocp_nlp_out_get
+        self._out_get.argtypes = [vp, vp, vp, ci, cc, vp]
+        self._cost_set = lib.ocp_nlp_cost_model_set
+        self._cost_set.argtypes = [vp, vp, vp, ci, cc, vp]
+        self._con_set = lib.ocp_nlp_constraints_model_set
+        self._con_set.argtypes = [vp, vp, vp, ci, cc, vp]
+        self._upd_p = getattr(lib, f"{model_name}_acados_update_params")
+        self._upd_p.argtypes = [vp, ci, vp, ci]
+        self._upd_p.restype = ci
+        self._ptrs = (S.nlp_config, S.nlp_dims, S.nlp_out, S.nlp_in)
+
+    def _set_out(self, k: int, field: bytes, v: NDArray[np.float64]) -> None:
+        cfg, dims, out, _ = self._ptrs
+        self._out_set(cfg, dims, out, k, field, v.ctypes.data)
+
+    def _get_out(self, field: bytes, n: int, stages: int) -> NDArray[np.float64]:
+        cfg, dims, out, _ = self._ptrs
+        res = np.empty((stages, n))
+        for k in range(stages):
+            self._out_get(cfg, dims, out, k, field, res[k].ctypes.data)
+        return res
+
+    def solve(self, x0: NDArray[np.float64], u_L: NDArray[np.float64],
+              stage_params: NDArray[np.float64], x_guess: NDArray[np.float64],
+              u_guess: NDArray[np.float64]) -> RawSolution:
+        """Up to ``rti_steps`` SQP-RTI steps; see :class:`~.base.Backend`."""
+        s, S = self.spec, self._solver
+        N = s.N
+        cfg, dims, _, nlp_in = self._ptrs
+        x0 = np.ascontiguousarray(x0, dtype=float)
+        self._con_set(cfg, dims, nlp_in, 0, b"lbx", x0.ctypes.data)  # eq. (b)
+        self._con_set(cfg, dims, nlp_in, 0, b"ubx", x0.ctypes.data)
+        yref = np.ascontiguousarray(u_L, dtype=float)
+        P = np.ascontiguousarray(stage_params, dtype=float)
+        Xg = np.ascontiguousarray(x_guess, dtype=float)
+        Ug = np.ascontiguousarray(np.clip(u_guess, s.u_lb, s.u_ub), dtype=float)
+        for k in range(N):
+            self._cost_set(cfg, dims, nlp_in, k, b"yref", yref.ctypes.data)
+            self._upd_p(S.capsule, k, P[k].ctypes.data, s.n_p)
+            self._set_out(k, b"x", Xg[k])
+            self._set_out(k, b"u", Ug[k])
+        self._upd_p(S.capsule, N, P[N].ctypes.data, s.n_p)
+        self._set_out(N, b"x", Xg[N])
+        t0 = time.perf_counter()
+        status, qp_status, iters = 0, 0, 0
+        prev_u = Ug
+        for _ in range(self.rti_steps):
+            status = S.solve()
+            iters += 1
+            qp_status = self._qp_status() if status == 0 else status
+            if status != 0 or qp_status != 0 or self.rti_steps == 1:
+                break
+            U = self._get_out(b"u", 3, N)
+            step = float(np.max(np.abs(U - prev_u)))
+            prev_u = U
+            if step < self.step_tol:
+                break
+        dt = time.perf_counter() - t0
+        X = self._get_out(b"x", 6, N + 1)
+        U = self._get_out(b"u", 3, N)
+        ok = status == 0 and qp_status == 0 and bool(np.all(np.isfinite(U)))
+        word = "ok" if ok else f"acados status {status}, QP status {qp_status}"
+        # slacks are not read back: the filter certifies the plan by simulation instead
+        return RawSolution(x=X, u=U, max_slack=float("nan"), success=ok, status=word,
+                           iterations=iters, solve_time_s=dt)
+
+    def _qp_status(self) -> int:
+        """Status of the last QP (0 ok); RTI reports success even when the QP did not."""
+        stat = np.atleast_2d(self._solver.get_stats("statistics"))
+        return int(stat[1, -1]) if stat.shape[0] > 1 else 0

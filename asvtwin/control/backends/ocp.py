@@ -1,0 +1,233 @@
+"""The safety filter's optimal control problem, written once in CasADi for every backend.
+
+The OCP of the paper's "Predictive Safety Filter" section,
+
+.. math::
+
+    \\min_{u, x, s} \\; \\|u_0 - u_L\\|^2_W + \\epsilon \\sum_{k=1}^{N-1}\\|u_k - u_L\\|^2_W
+        + \\rho \\sum_k \\mathbf{1}^\\top s_k
+
+    \\text{s.t.}\\; (a)\\; x_{k+1} = F(x_k, u_k, \\hat d), \\quad (b)\\; x_0 = x(t),
+    \\quad (c)\\; |\\nu_k| \\le \\nu_{max} + s, \\quad (d)\\; u_{lb} \\le u_k \\le u_{ub},
+
+    (e)\\; d(p_k, O_{i,k}) \\ge d_{safe} - s, \\quad (f)\\; d(p_N, O_{i,N}) \\ge d_{safe} + d_f - s,
+    \\quad (g)\\; \\nu_N^\\top P_f \\nu_N \\le 1 + s,
+
+is described here by stage functions a backend assembles: the discrete dynamics ``F``
+(classic RK4 of the vessel model, |·| smoothed as sqrt(z² + 1e-6) as REFERENCE §2
+requires), the soft path constraints ``h(x, p) >= 0`` and the terminal constraints
+``h_N(x, p) >= 0``. Every soft constraint has an L1-penalised slack (weight ``rho``); the
+inputs are hard.
+
+Stage parameters ``p_k`` (one vector per stage, ``(N+1, n_p)``) carry everything that
+changes between calls, so a solver is built once: ``[d̂ (3), clearance (1), circles
+(3 m: north, east, radius), segments (4 s: n0, e0, n1, e1)]``. Unused obstacle slots
+hold far-away dummies (:func:`dummy_parameters`), never ±inf or 1e9 (an acados pitfall).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+from asvtwin.vessel.params import VesselParams
+
+__all__ = [
+    "DUMMY_DISTANCE_FACTOR",
+    "SMOOTH_ABS_EPS",
+    "OcpSpec",
+    "cache_dir",
+    "continuous_dynamics",
+    "discrete_dynamics",
+    "path_constraints",
+    "terminal_constraints",
+]
+
+#: ε of the smoothed absolute value sqrt(z² + ε) in the damping (REFERENCE §2).
+SMOOTH_ABS_EPS = 1e-6
+#: Unused obstacle slots sit this many ship lengths away from the own ship.
+DUMMY_DISTANCE_FACTOR = 200.0
+
+
+@dataclass(frozen=True)
+class OcpSpec:
+    """Everything that fixes the structure and constants of the OCP (hashed for caches).
+
+    Attributes
+    ----------
+    params : dict
+        The vessel's coefficients (``VesselParams.to_dict()``).
+    N : int
+        Number of stages.
+    dt_s : float
+        Stage length [s].
+    n_circles, n_segments : int
+        Obstacle slots per stage.
+    u_lb, u_ub : tuple of 3 floats
+        Hard input bounds [N, N, Nm].
+    nu_max : tuple of 3 floats
+        Soft velocity bounds |u|, |v| [m/s], |r| [rad/s].
+    W : tuple of 3 floats
+        Diagonal of the input weight (paper's W, normalised by the input range).
+    later_weight : float
+        ε: weight of stages 1..N-1 relative to stage 0.
+    slack_l1, slack_l2 : float
+        Slack penalties ρ (L1) and a small quadratic term for conditioning.
+    P_f : tuple of 9 floats
+        Terminal ellipsoid matrix (row-major 3x3).
+    rk4_substeps : int
+        RK4 steps per stage.
+    """
+
+    params: tuple[tuple[str, float], ...]
+    N: int
+    dt_s: float
+    n_circles: int
+    n_segments: int
+    u_lb: tuple[float, float, float]
+    u_ub: tuple[float, float, float]
+    nu_max: tuple[float, float, float]
+    W: tuple[float, float, float]
+    later_weight: float
+    slack_l1: float
+    slack_l2: float
+    P_f: tuple[float, ...]
+    rk4_substeps: int = 1
+
+    @property
+    def n_p(self) -> int:
+        """Length of one stage's parameter vector."""
+        return 4 + 3 * self.n_circles + 4 * self.n_segments
+
+    @property
+    def n_h(self) -> int:
+        """Number of soft path constraints per stage (obstacles only)."""
+        return self.n_circles + self.n_segments
+
+    @property
+    def vessel(self) -> VesselParams:
+        return VesselParams.from_dict(
+            {k: v for k, v in self.params if k not in ("actuators",)}
+        )
+
+    @property
+    def P_f_matrix(self) -> NDArray[np.float64]:
+        return np.asarray(self.P_f, dtype=float).reshape(3, 3)
+
+    def key(self) -> str:
+        """Stable hash of the spec (cache key for generated code)."""
+        blob = json.dumps(asdict(self), sort_keys=True, default=float).encode()
+        blob += ca.CasadiMeta.version().encode()
+        return hashlib.sha256(blob).hexdigest()[:16]
+
+
+def cache_dir() -> Path:
+    """Where generated solver code lives: ``$ASVTWIN_CACHE`` or ``~/.cache/asvtwin``."""
+    root = os.environ.get("ASVTWIN_CACHE") or os.path.join(
+        os.path.expanduser("~"), ".cache", "asvtwin"
+    )
+    path = Path(root)
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _sabs(z: ca.SX) -> ca.SX:
+    return ca.sqrt(z * z + SMOOTH_ABS_EPS)
+
+
+def continuous_dynamics(p: VesselParams) -> ca.Function:
+    """ẋ = f(x, τ, d̂) of the vessel model as a CasADi SX function ``f(x, u, d)``.
+
+    eq. (a) / (state_space_model): η̇ = R(ψ)ν, M ν̇ = τ + τ_d − C(ν)ν − D(ν)ν, the same
+    coefficients as :func:`asvtwin.vessel.model.rhs` with |·| smoothed.
+    """
+    x = ca.SX.sym("x", 6)
+    u = ca.SX.sym("u", 3)
+    d = ca.SX.sym("d", 3)
+    psi, su, sv, sr = x[2], x[3], x[4], x[5]
+    M = p.M
+    Minv = np.linalg.inv(M)
+    M23 = 0.5 * (M[1, 2] + M[2, 1])
+    au, av, ar = _sabs(su), _sabs(sv), _sabs(sr)
+    # D(ν) entries, REFERENCE §1
+    d11 = -p.X_u - p.X_uu * au - p.X_uuu * su * su
+    d22 = -p.Y_v - p.Y_vv * av - p.Y_rv * ar
+    d23 = -p.Y_r - p.Y_vr * av - p.Y_rr * ar
+    d32 = -p.N_v - p.N_vv * av - p.N_rv * ar
+    d33 = -p.N_r - p.N_vr * av - p.N_rr * ar
+    # C(ν) skew-symmetric: c13 = -(M22 v + M23 r), c23 = M11 u
+    c13 = -(M[1, 1] * sv + M23 * sr)
+    c23 = M[0, 0] * su
+    Cnu = ca.vertcat(c13 * sr, c23 * sr, -c13 * su - c23 * sv)
+    Dnu = ca.vertcat(d11 * su, d22 * sv + d23 * sr, d32 * sv + d33 * sr)
+    rhs = u + d - Cnu - Dnu
+    nu_dot = ca.mtimes(ca.DM(Minv), rhs)
+    eta_dot = ca.vertcat(ca.cos(psi) * su - ca.sin(psi) * sv,
+                         ca.sin(psi) * su + ca.cos(psi) * sv, sr)
+    return ca.Function("f_vessel", [x, u, d], [ca.vertcat(eta_dot, nu_dot)],
+                       ["x", "u", "d"], ["xdot"])
+
+
+def discrete_dynamics(p: VesselParams, dt_s: float, substeps: int = 1) -> ca.Function:
+    """x_{k+1} = F(x_k, u_k, d̂): ``substeps`` classic RK4 steps over one stage."""
+    f = continuous_dynamics(p)
+    x = ca.SX.sym("x", 6)
+    u = ca.SX.sym("u", 3)
+    d = ca.SX.sym("d", 3)
+    h = dt_s / substeps
+    xk = x
+    for _ in range(substeps):
+        k1 = f(xk, u, d)
+        k2 = f(xk + 0.5 * h * k1, u, d)
+        k3 = f(xk + 0.5 * h * k2, u, d)
+        k4 = f(xk + h * k3, u, d)
+        xk = xk + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return ca.Function("F_stage", [x, u, d], [xk], ["x", "u", "d"], ["x_next"])
+
+
+def _obstacle_margins(x: ca.SX, pk: ca.SX, n_circles: int, n_segments: int) -> ca.SX:
+    """Distance margins [m] of position (x[0], x[1]) to every obstacle slot, minus the
+    stage's clearance (eq. (e)/(f)); >= 0 is safe."""
+    clearance = pk[3]
+    out = []
+    base = 4
+    for i in range(n_circles):
+        cx, cy, r = pk[base + 3 * i], pk[base + 3 * i + 1], pk[base + 3 * i + 2]
+        dist = ca.sqrt((x[0] - cx) ** 2 + (x[1] - cy) ** 2 + SMOOTH_ABS_EPS)
+        out.append(dist - r - clearance)
+    base += 3 * n_circles
+    for j in range(n_segments):
+        ax, ay, bx, by = (pk[base + 4 * j + i] for i in range(4))
+        ex, ey = bx - ax, by - ay
+        L2 = ex * ex + ey * ey + SMOOTH_ABS_EPS
+        t = ca.fmin(1.0, ca.fmax(0.0, ((x[0] - ax) * ex + (x[1] - ay) * ey) / L2))
+        qx, qy = ax + t * ex - x[0], ay + t * ey - x[1]
+        out.append(ca.sqrt(qx * qx + qy * qy + SMOOTH_ABS_EPS) - clearance)
+    return ca.vertcat(*out) if out else ca.SX(0, 1)
+
+
+def path_constraints(spec: OcpSpec) -> ca.Function:
+    """``h(x, p) >= 0`` (soft): obstacle margins, eq. (e), for stages 1..N-1."""
+    x = ca.SX.sym("x", 6)
+    pk = ca.SX.sym("p", spec.n_p)
+    h = _obstacle_margins(x, pk, spec.n_circles, spec.n_segments)
+    return ca.Function("h_path", [x, pk], [h], ["x", "p"], ["h"])
+
+
+def terminal_constraints(spec: OcpSpec) -> ca.Function:
+    """``h_N(x, p) >= 0`` (soft): margins with clearance d_safe + d_f, eq. (f), and the
+    terminal ellipsoid 1 − ν_Nᵀ P_f ν_N, eq. (g)."""
+    x = ca.SX.sym("x", 6)
+    pk = ca.SX.sym("p", spec.n_p)
+    h = _obstacle_margins(x, pk, spec.n_circles, spec.n_segments)
+    nu = x[3:6]
+    # eq. (OCP)(g): terminal ellipsoid ν_Nᵀ P_f ν_N ≤ 1
+    g = 1.0 - ca.mtimes([nu.T, ca.DM(spec.P_f_matrix), nu])
+    return ca.Function("h_term", [x, pk], [ca.vertcat(h, g)], ["x", "p"], ["h"])

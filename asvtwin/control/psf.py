@@ -1,0 +1,468 @@
+"""The predictive safety filter: minimally correct any input so the vessel stays safe.
+
+:class:`SafetyFilter` solves the paper's OCP (a)-(g) (see
+:mod:`asvtwin.control.backends.ocp`) once per call: the learner's input ``u_L`` is kept
+if some plan that starts with it keeps ≥ d_safe from every obstacle over the horizon and
+ends in the terminal set (≥ d_safe + d_f from obstacles, velocity in the braking
+ellipsoid P_f); otherwise the closest such input in the W-norm is returned.
+
+Every plan a backend returns is *re-simulated* on the model from the current state and
+certified on the simulated states before use: this covers SQP-RTI's one-QP answers and
+any solver that claims more than it did. An uncertified call falls back to the tail of
+the last certified plan, then to the braking backup (:mod:`asvtwin.control.fallback`);
+the raw input is never passed through.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from asvtwin.control.backends import available_backends, make_backend
+from asvtwin.control.backends.ocp import DUMMY_DISTANCE_FACTOR, OcpSpec, discrete_dynamics
+from asvtwin.control.fallback import BackupPlan, Fallback, backup_input
+from asvtwin.control.obstacles import CoastSegments, Obstacles, stage_circles
+from asvtwin.control.terminal_set import TerminalSet, compute_terminal_set
+from asvtwin.errors import ConfigError, StateError
+from asvtwin.vessel.params import VesselParams
+
+__all__ = ["ActiveConstraint", "FilterResult", "PsfConfig", "SafetyFilter"]
+
+log = logging.getLogger(__name__)
+_F8 = NDArray[np.float64]
+#: CyberShip II's length [m]: the reference for the model-scale defaults below.
+_CS2_LENGTH = 1.255
+
+
+@dataclass(frozen=True)
+class PsfConfig:
+    """Settings of the safety filter (defaults: REFERENCE §2, model scale, Froude-scaled
+    by the vessel's length for other hulls when left at None).
+
+    Attributes
+    ----------
+    N, dt_s : int, float
+        Stages and stage length [s] (50 x 0.5 s).
+    backend : str
+        ``"auto"`` (fastest installed: acados, else casadi-ipopt), ``"acados"``,
+        ``"casadi-ipopt"`` or ``"casadi-fatrop"``.
+    d_safe_m : float, optional
+        Safety distance from the own ship's origin to an obstacle's edge [m]; default
+        the ship's length.
+    d_f_m : float, optional
+        Terminal distance d_f [m] (braking distance bound); default 6 ship lengths.
+    nu_max : tuple of 3 floats, optional
+        Soft velocity bounds |u|, |v| [m/s], |r| [rad/s]; default (2, 2, 0.15) scaled.
+    terminal_r_max : float, optional
+        Largest yaw rate of the terminal ellipsoid [rad/s]; default 4·nu_max[2].
+    gamma : tuple of 3 floats
+        γ_u of the paper's W = diag(γ_i / (u_ub,i − u_lb,i)²).
+    later_weight : float
+        Weight of stages 1..N-1 in the cost (the published code: 0, only u_0 counts).
+    slack_l1, slack_l2 : float
+        L1 (100 in the published code) and small L2 penalty of the slacks.
+    n_circles, n_segments : int
+        Obstacle slots: the nearest circles and coast segments are used.
+    certify_tol_m : float, optional
+        Tolerance of the certification of a plan [m]; default 2 % of the ship length.
+    max_iter : int
+        Iteration limit of the CasADi solvers.
+    rti_steps : int
+        Largest number of SQP-RTI steps per call (acados).
+    cold_start_solves : int
+        Solver calls allowed when there is no previous plan to warm-start from.
+    """
+
+    N: int = 50
+    dt_s: float = 0.5
+    backend: str = "auto"
+    d_safe_m: float | None = None
+    d_f_m: float | None = None
+    nu_max: tuple[float, float, float] | None = None
+    terminal_r_max: float | None = None
+    gamma: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    later_weight: float = 1e-3
+    slack_l1: float = 100.0
+    slack_l2: float = 1.0
+    n_circles: int = 20
+    n_segments: int = 4
+    certify_tol_m: float | None = None
+    max_iter: int = 200
+    rti_steps: int = 1
+    cold_start_solves: int = 5
+
+    def __post_init__(self) -> None:
+        checks: list[tuple[str, bool, str]] = [
+            ("N", isinstance(self.N, int) and 1 <= self.N <= 500, "an int in [1, 500]"),
+            ("dt_s", math.isfinite(self.dt_s) and self.dt_s > 0, "> 0"),
+            ("later_weight", self.later_weight >= 0, ">= 0"),
+            ("slack_l1", self.slack_l1 > 0, "> 0"),
+            ("slack_l2", self.slack_l2 >= 0, ">= 0"),
+            ("n_circles", self.n_circles >= 1, ">= 1"),
+            ("n_segments", self.n_segments >= 0, ">= 0"),
+            ("max_iter", self.max_iter >= 1, ">= 1"),
+            ("rti_steps", self.rti_steps >= 1, ">= 1"),
+            ("cold_start_solves", self.cold_start_solves >= 1, ">= 1"),
+            ("gamma", len(self.gamma) == 3 and min(self.gamma) >= 0, "3 values >= 0"),
+        ]
+        for name in ("d_safe_m", "d_f_m", "terminal_r_max", "certify_tol_m"):
+            v = getattr(self, name)
+            checks.append((name, v is None or (math.isfinite(v) and v > 0), "None or > 0"))
+        if self.nu_max is not None:
+            checks.append(("nu_max", len(self.nu_max) == 3 and min(self.nu_max) > 0,
+                           "3 values > 0"))
+        for name, ok, expected in checks:
+            if not ok:
+                raise ConfigError(f"PsfConfig.{name} must be {expected}, actually: "
+                                  f"{getattr(self, name)!r}")
+
+
+@dataclass(frozen=True)
+class ActiveConstraint:
+    """A constraint at (or within the activity tolerance of) its bound.
+
+    ``kind`` is ``"circle"``, ``"segment"``, ``"velocity"`` or ``"terminal_set"``;
+    ``index`` the obstacle's index in the order given (circles: static then moving) or the
+    velocity component; ``stage`` k; ``margin`` its value [m, m/s or 1].
+    """
+
+    kind: Literal["circle", "segment", "velocity", "terminal_set"]
+    index: int
+    stage: int
+    margin: float
+
+
+@dataclass(frozen=True)
+class FilterResult:
+    """The filter's answer for one call, with its explanation.
+
+    Attributes
+    ----------
+    u0 : ndarray, shape (3,)
+        The safe input to apply [N, N, Nm].
+    delta_u : ndarray, shape (3,)
+        Intervention δ_u = u_L − u_0.
+    x_pred, u_pred : ndarray, shapes (N+1, 6) and (N, 3)
+        The plan behind ``u0`` (states simulated on the model from the current state).
+    obstacle_margin_m : ndarray, shape (N+1,)
+        Per stage, the smallest distance to an obstacle minus the required clearance
+        (d_safe; d_safe + d_f at N) [m]; stage 0 is the current state.
+    velocity_margin : ndarray, shape (N+1, 3)
+        ν_max − |ν| per stage [m/s, m/s, rad/s] (soft bounds).
+    terminal_margin : float
+        1 − ν_Nᵀ P_f ν_N (≥ 0: inside the terminal ellipsoid).
+    active : tuple of ActiveConstraint
+        Constraints within the activity tolerance (the explanation of an intervention).
+    success : bool
+        The fresh plan was certified and used (``fallback == "none"``).
+    status : str
+        Solver status word (and the reason when not certified).
+    iterations : int
+        Solver iterations.
+    solve_time_s : float
+        Solver wall time [s].
+    fallback : str
+        ``"none"``, ``"plan_tail"`` or ``"braking"``.
+    backend : str
+        Backend name.
+    """
+
+    u0: _F8
+    delta_u: _F8
+    x_pred: _F8
+    u_pred: _F8
+    obstacle_margin_m: _F8
+    velocity_margin: _F8
+    terminal_margin: float
+    active: tuple[ActiveConstraint, ...]
+    success: bool
+    status: str
+    iterations: int
+    solve_time_s: float
+    fallback: str
+    backend: str
+    critical: tuple[tuple[float, float, float], ...] = field(default=())
+
+    @property
+    def intervened(self) -> bool:
+        """True when u_0 differs from u_L by more than 1 % of the input range."""
+        return bool(np.max(np.abs(self.delta_u)) > 1e-2)
+
+
+def _validate(a: ArrayLike | None, n: int, what: str, fields: tuple[str, ...]) -> _F8:
+    arr = np.asarray(a, dtype=float)
+    if arr.shape != (n,):
+        raise StateError(f"{what} must have shape ({n},), actually: {arr.shape}")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        j = int(np.argmax(bad))
+        raise StateError(f"{what} has non-finite {fields[j]}: {arr[j]}")
+    return arr
+
+
+class SafetyFilter:
+    """Predictive safety filter for one vessel (build once per process, call every step).
+
+    Parameters
+    ----------
+    params : VesselParams
+        The vessel: the same coefficients as the simulator's (actuator lag is not
+        modelled: the plan's stages are much longer than the thruster time constant).
+    config : PsfConfig
+        Settings.
+
+    Examples
+    --------
+    >>> from asvtwin.control import SafetyFilter, PsfConfig, CircleObstacles
+    >>> from asvtwin.vessel import cybership2
+    >>> psf = SafetyFilter(cybership2(), config=PsfConfig(N=20, backend="casadi-ipopt"))
+    >>> rock = CircleObstacles(centres=[[12.0, 0.0]], radii=[1.0])
+    >>> res = psf.filter([0, 0, 0, 0.3, 0, 0], [2.0, 0, 0], rock, t_s=0.0)
+    >>> res.fallback, bool(res.u0[0] < 1.0), res.intervened  # thrust cut, turn started
+    ('none', True, True)
+    """
+
+    def __init__(self, params: VesselParams, *, config: PsfConfig | None = None) -> None:
+        self.params = params
+        self.config = cfg = config or PsfConfig()
+        scale = params.length / _CS2_LENGTH
+        sq = math.sqrt(scale)
+        self.d_safe_m = cfg.d_safe_m if cfg.d_safe_m is not None else params.length
+        self.d_f_m = cfg.d_f_m if cfg.d_f_m is not None else 6.0 * params.length
+        self.nu_max = np.asarray(cfg.nu_max if cfg.nu_max is not None
+                                 else (2.0 * sq, 2.0 * sq, 0.15 / sq), dtype=float)
+        self.certify_tol_m = (cfg.certify_tol_m if cfg.certify_tol_m is not None
+                              else 0.02 * params.length)
+        act = params.actuators
+        self.u_lb = np.asarray(act.tau_min, dtype=float)
+        self.u_ub = np.asarray(act.tau_max, dtype=float)
+        if not (np.all(np.isfinite(self.u_lb)) and np.all(np.isfinite(self.u_ub))):
+            raise ConfigError(f"the safety filter needs finite actuator bounds; vessel "
+                              f"{params.name!r} has tau_min={act.tau_min}, "
+                              f"tau_max={act.tau_max}")
+        r_term = cfg.terminal_r_max if cfg.terminal_r_max is not None else 4 * self.nu_max[2]
+        tau_r = min(abs(self.u_lb[2]), abs(self.u_ub[2]))
+        k_r = tau_r / r_term if tau_r > 0 else 0.0
+        self.terminal_set: TerminalSet = compute_terminal_set(
+            params, d_f_m=self.d_f_m, nu_max=(self.nu_max[0], self.nu_max[1], r_term),
+            k_r=k_r)
+        rng = self.u_ub - self.u_lb
+        # eq. (W): W = diag(γ_i / (u_ub,i − u_lb,i)²); a fixed DOF (range 0) gets weight 0
+        W = np.where(rng > 0, np.asarray(cfg.gamma) / np.where(rng > 0, rng, 1.0) ** 2, 0.0)
+        d = params.to_dict()
+        d.pop("actuators")
+        self.spec = OcpSpec(
+            params=tuple(sorted(d.items())), N=cfg.N, dt_s=cfg.dt_s,
+            n_circles=cfg.n_circles, n_segments=cfg.n_segments,
+            u_lb=tuple(self.u_lb), u_ub=tuple(self.u_ub), nu_max=tuple(self.nu_max),
+            W=(float(W[0]), float(W[1]), float(W[2])), later_weight=cfg.later_weight,
+            slack_l1=cfg.slack_l1, slack_l2=cfg.slack_l2,
+            P_f=tuple(self.terminal_set.P_f.ravel()),
+        )
+        name = cfg.backend if cfg.backend != "auto" else available_backends()[0]
+        opts: dict[str, object] = ({"rti_steps": cfg.rti_steps} if name == "acados"
+                                   else {"max_iter": cfg.max_iter})
+        self.backend = make_backend(name, self.spec, **opts)
+        F = discrete_dynamics(params, cfg.dt_s, self.spec.rk4_substeps)
+        self._rollout = F.mapaccum("rollout", cfg.N)
+        self._plan: BackupPlan | None = None
+        self._last: tuple[float, _F8, _F8] | None = None  # (t, x_pred, u_pred)
+        self._t: float | None = None
+        self._dropped_logged = False
+
+    # --------------------------------------------------------------------- helpers
+    def rollout(self, x0: ArrayLike, u: ArrayLike, d_hat: ArrayLike | None = None) -> _F8:
+        """States (N+1, 6) of the plan ``u`` (N, 3) from ``x0`` on the filter's model."""
+        N = self.config.N
+        D = np.zeros((3, N)) if d_hat is None else np.tile(np.asarray(d_hat)[:, None], N)
+        X = np.asarray(self._rollout(np.asarray(x0, float), np.asarray(u, float).T, D))
+        return np.vstack([np.asarray(x0, float)[None], X.T])
+
+    def reset(self) -> None:
+        """Forget the last plan (new episode)."""
+        self._plan, self._last, self._t = None, None, None
+
+    def _stage_params(self, x: _F8, d_hat: _F8, centres: _F8, radii: _F8, segs: _F8,
+                      ) -> tuple[_F8, NDArray[np.intp], NDArray[np.intp]]:
+        s, N = self.spec, self.config.N
+        m, k = centres.shape[1], segs.shape[0]
+        ci = np.arange(m)
+        if m > s.n_circles:  # keep the circles that come nearest over the horizon
+            gap = np.linalg.norm(centres - x[None, None, :2], axis=2) - radii
+            ci = np.sort(np.argsort(gap.min(axis=0))[: s.n_circles])
+        si = np.arange(k)
+        if k > s.n_segments:
+            dist = CoastSegments(segs).distances(x[None, :2])[0]
+            si = np.sort(np.argsort(dist)[: s.n_segments])
+        if (m > s.n_circles or k > s.n_segments) and not self._dropped_logged:
+            log.warning("safety filter: %d circles / %d segments given, using the nearest "
+                        "%d / %d (raise PsfConfig.n_circles / n_segments)", m, k,
+                        s.n_circles, s.n_segments)
+            self._dropped_logged = True
+        P = np.zeros((N + 1, s.n_p))
+        P[:, 0:3] = d_hat
+        P[:, 3] = self.d_safe_m
+        P[N, 3] = self.d_safe_m + self.d_f_m  # eq. (f)
+        far = DUMMY_DISTANCE_FACTOR * self.params.length
+        circ = np.zeros((N + 1, s.n_circles, 3))
+        circ[:, :, 0] = x[0] + far
+        circ[:, :, 1] = x[1] + far * (1 + 0.01 * np.arange(s.n_circles))
+        circ[:, :, 2] = self.params.length
+        circ[:, : len(ci), 0:2] = centres[:, ci]
+        circ[:, : len(ci), 2] = radii[:, ci]
+        P[:, 4: 4 + 3 * s.n_circles] = circ.reshape(N + 1, -1)
+        if s.n_segments:
+            sg = np.tile(np.array([x[0] - far, x[1] - far, x[0] - far, x[1] - far + 1.0]),
+                         (s.n_segments, 1))
+            sg[: len(si)] = segs[si]
+            P[:, 4 + 3 * s.n_circles:] = sg.ravel()
+        return P, ci, si
+
+    def _margins(self, X: _F8, centres: _F8, radii: _F8, segs: _F8) -> tuple[_F8, _F8]:
+        """Per-stage obstacle margins (N+1, m + k) [m] against the required clearance."""
+        N = self.config.N
+        clear = np.full(N + 1, self.d_safe_m)
+        clear[N] += self.d_f_m
+        parts = []
+        if centres.shape[1]:
+            parts.append(np.linalg.norm(X[:, None, :2] - centres, axis=2) - radii)
+        if segs.shape[0]:
+            parts.append(CoastSegments(segs).distances(X[:, :2]))
+        if not parts:
+            return np.full((N + 1, 0), np.inf), clear
+        return np.concatenate(parts, axis=1) - clear[:, None], clear
+
+    # ------------------------------------------------------------------------ filter
+    def filter(self, x: ArrayLike, u_L: ArrayLike, obstacles: Obstacles | None = None,
+               d_hat: ArrayLike | None = None, *, t_s: float | None = None) -> FilterResult:
+        """The safe input for state ``x`` and learner input ``u_L``.
+
+        Parameters
+        ----------
+        x : array_like, shape (6,)
+            Own state ``[x, y, ψ, u, v, r]`` [m, m, rad, m/s, m/s, rad/s], NED.
+        u_L : array_like, shape (3,)
+            The learner's input [N, N, Nm].
+        obstacles : CircleObstacles, MovingObstacles, CoastSegments or a sequence
+            What to keep clear of (moving ones predicted over the N+1 stage times).
+        d_hat : array_like, shape (3,), optional
+            Disturbance estimate τ̂_d [N, N, Nm], body frame, held over the horizon.
+        t_s : float, optional
+            Time of ``x`` [s]; default: one stage after the previous call.
+
+        Raises
+        ------
+        StateError
+            NaN/inf in ``x``, ``u_L`` or ``d_hat``; a non-positive radius; an obstacle
+            that contains the own ship's position.
+        """
+        cfg, N = self.config, self.config.N
+        x = _validate(x, 6, "state x", ("x", "y", "psi", "u", "v", "r"))
+        u_L = _validate(u_L, 3, "learner input u_L", ("tau_u", "tau_v", "tau_r"))
+        d = np.zeros(3) if d_hat is None else _validate(d_hat, 3, "disturbance d_hat",
+                                                        ("tau_u", "tau_v", "tau_r"))
+        if t_s is None:
+            t_s = 0.0 if self._t is None else self._t + cfg.dt_s
+        elif not math.isfinite(t_s):
+            raise StateError(f"t_s must be finite, actually: {t_s}")
+        self._t = float(t_s)
+        centres, radii, segs = stage_circles(obstacles, N)
+        if centres.shape[1]:
+            gap0 = np.linalg.norm(centres[0] - x[:2], axis=1) - radii[0]
+            i = int(np.argmin(gap0))
+            if gap0[i] < 0:
+                raise StateError(
+                    f"obstacle circle {i} (centre {centres[0, i].tolist()} m, radius "
+                    f"{radii[0, i]:.3f} m) contains the own ship at {x[:2].tolist()}: "
+                    f"distance to its edge {gap0[i]:.3f} m, expected >= 0")
+        P, ci, si = self._stage_params(x, d, centres, radii, segs)
+        xg, ug = self._guess(x, u_L, d, t_s)
+        # a cold start (no previous plan) gets a few solves to converge (RTI: one QP each)
+        attempts = 1 if self._last is not None else cfg.cold_start_solves
+        iters, t_solve = 0, 0.0
+        for _ in range(attempts):
+            try:
+                raw = self.backend.solve(x, u_L, P, xg, ug)
+                U = np.clip(raw.u, self.u_lb, self.u_ub)
+                status, ok = raw.status, raw.success
+                iters += raw.iterations
+                t_solve += raw.solve_time_s
+            except RuntimeError as exc:  # a solver crash is a failed solve, not a crash
+                U, status, ok = ug, f"solver error: {exc}", False
+            X = self.rollout(x, U, d)  # certify on the model, not on the solver's claim
+            margins, _ = self._margins(X, centres, radii, segs)
+            term = float(1.0 - X[N, 3:] @ self.terminal_set.P_f @ X[N, 3:])
+            obst_ok = margins.shape[1] == 0 or margins[1:].min() >= -self.certify_tol_m
+            certified = ok and obst_ok and term >= -0.05 and bool(np.all(np.isfinite(X)))
+            if ok and np.all(np.isfinite(raw.x)):
+                self._last = (t_s, raw.x, U)  # the next warm start, certified or not
+                xg, ug = raw.x, U
+            if certified:
+                break
+        if certified:
+            u0, fb = U[0].copy(), Fallback.NONE
+            self._plan = BackupPlan(u=U, x=X, t0_s=t_s, dt_s=cfg.dt_s)
+        else:
+            why = ("solver failed" if not ok else "plan violates obstacle clearance"
+                   if not obst_ok else "plan ends outside the terminal set")
+            status = f"{status}; not certified: {why}"
+            u0, fb = backup_input(self.params, x, t_s, self._plan, self.terminal_set.k_r)
+            if fb is Fallback.PLAN_TAIL and self._plan is not None:
+                _, ut = self._plan.tail(t_s)
+                U = np.vstack([ut, np.tile(u0 * 0, (N - len(ut), 1))])
+            else:
+                U = np.tile(u0, (N, 1))
+            X = self.rollout(x, U, d)
+            margins, _ = self._margins(X, centres, radii, segs)
+            term = float(1.0 - X[N, 3:] @ self.terminal_set.P_f @ X[N, 3:])
+        return self._result(x, u_L, u0, X, U, margins, term, ci, si, centres, radii,
+                            certified, status, iters, t_solve, fb)
+
+    def _guess(self, x: _F8, u_L: _F8, d: _F8, t_s: float) -> tuple[_F8, _F8]:
+        N = self.config.N
+        if self._last is not None:
+            t0, X, U = self._last
+            i = round((t_s - t0) / self.config.dt_s)
+            if 0 <= i < N:
+                Ug = np.vstack([U[i:], np.tile(U[-1], (i, 1))])
+                Xg = np.vstack([X[i:], np.tile(X[-1], (i, 1))])
+                Xg[0] = x
+                return Xg, Ug
+        Ug = np.zeros((N, 3))
+        Ug[0] = np.clip(u_L, self.u_lb, self.u_ub)
+        Ug[1:, 2] = np.clip(-self.terminal_set.k_r * x[5], self.u_lb[2], self.u_ub[2])
+        return self.rollout(x, Ug, d), Ug
+
+    def _result(self, x: _F8, u_L: _F8, u0: _F8, X: _F8, U: _F8, margins: _F8, term: float,
+                ci: NDArray[np.intp], si: NDArray[np.intp], centres: _F8, radii: _F8, certified: bool, status: str,
+                iters: int, t_solve: float, fb: Fallback) -> FilterResult:
+        N = self.config.N
+        m = centres.shape[1]
+        tol = 0.05 * self.params.length
+        active: list[ActiveConstraint] = []
+        if margins.shape[1]:
+            for k, j in zip(*np.nonzero(margins[1:] <= tol)):
+                kind: Literal["circle", "segment"] = "circle" if j < m else "segment"
+                active.append(ActiveConstraint(kind, int(j if j < m else j - m), int(k) + 1,
+                                               float(margins[k + 1, j])))
+        vel = self.nu_max[None, :] - np.abs(X[:, 3:])
+        for k, j in zip(*np.nonzero(vel[1:] <= 0.01 * self.nu_max)):
+            active.append(ActiveConstraint("velocity", int(j), int(k) + 1, float(vel[k + 1, j])))
+        if term <= 0.02:
+            active.append(ActiveConstraint("terminal_set", 0, N, term))
+        obst = margins.min(axis=1) if margins.shape[1] else np.full(N + 1, np.inf)
+        hit = sorted({a.index for a in active if a.kind == "circle"})
+        critical = tuple((float(centres[0, j, 0]), float(centres[0, j, 1]),
+                          float(radii[0, j] + self.d_safe_m)) for j in hit)
+        return FilterResult(
+            u0=u0, delta_u=u_L - u0, x_pred=X, u_pred=U, obstacle_margin_m=obst,
+            velocity_margin=vel, terminal_margin=term, active=tuple(active),
+            success=certified, status=status, iterations=int(iters),
+            solve_time_s=float(t_solve), fallback=fb.value, backend=self.backend.name,
+            critical=critical,
+        )

@@ -1,0 +1,93 @@
+"""Benchmark of the predictive safety filter in closed loop; prints one JSON object.
+
+Setting (issue 5): N = 50 stages of 0.5 s, 20 obstacles of which 5 move (constant
+velocity, ground-truth predictions), CyberShip II driven by a naive full-thrust controller
+steering north through the field, a few hundred closed-loop filter calls on the project's
+simulator. Timed: the whole ``SafetyFilter.filter`` call (``solve_ms_*``, what a caller
+waits for) and the backend's solver call alone (``backend_ms_*``). Warm-up excluded: the
+solver build (or cache load) and the first 5 calls.
+
+Usage: ``python benchmarks/psf.py [--backend auto|acados|casadi-ipopt] [--steps 300]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from asvtwin.control import CircleObstacles, MovingObstacles, PsfConfig, SafetyFilter
+from asvtwin.vessel import VesselSimulator, cybership2
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--backend", default="auto")
+    ap.add_argument("--steps", type=int, default=300)
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+
+    params = cybership2()
+    cfg = PsfConfig(N=50, dt_s=0.5, backend=args.backend, n_circles=20)
+    t0 = time.perf_counter()
+    psf = SafetyFilter(params, config=cfg)
+    build_s = time.perf_counter() - t0
+
+    rng = np.random.default_rng(args.seed)
+    # 15 static circles in a corridor ahead, none within 6 m of the start
+    n_static, n_moving = 15, 5
+    cs = np.stack([rng.uniform(8, 80, n_static), rng.uniform(-15, 15, n_static)], axis=1)
+    cs[np.linalg.norm(cs, axis=1) < 6.0] += [10.0, 0.0]
+    static = CircleObstacles(cs, rng.uniform(0.8, 2.5, n_static))
+    mp = np.stack([rng.uniform(15, 70, n_moving), rng.choice([-25.0, 25.0], n_moving)], axis=1)
+    mv = np.stack([rng.uniform(-0.1, 0.1, n_moving), -np.sign(mp[:, 1]) *
+                   rng.uniform(0.15, 0.35, n_moving)], axis=1)
+    mr = rng.uniform(1.0, 2.0, n_moving)
+
+    sim = VesselSimulator(params, [0.0, 0.0, 0.0, 0.3, 0.0, 0.0], dt_s=0.1)
+    u_L = np.array([2.0, 0.0, 0.0])
+    call_ms, solver_ms, fallbacks, violations, min_clear = [], [], 0, 0, np.inf
+    x = sim.state
+    for k in range(args.steps):
+        t = k * cfg.dt_s
+        moving = MovingObstacles.constant_velocity(mp + t * mv, mv, mr, N=cfg.N, dt_s=cfg.dt_s)
+        c0 = time.perf_counter()
+        res = psf.filter(x, u_L, [static, moving], t_s=t)
+        c1 = time.perf_counter()
+        if k >= 5:
+            call_ms.append((c1 - c0) * 1e3)
+            solver_ms.append(res.solve_time_s * 1e3)
+        fallbacks += res.fallback != "none"
+        for j in range(5):
+            x = sim.step(res.u0)
+            tj = t + 0.1 * (j + 1)
+            gap = min(float(np.min(np.linalg.norm(static.centres - x[:2], axis=1) - static.radii)),
+                      float(np.min(np.linalg.norm(mp + tj * mv - x[:2], axis=1) - mr)))
+            min_clear = min(min_clear, gap)
+            violations += gap < psf.d_safe_m
+    a, b = np.asarray(call_ms), np.asarray(solver_ms)
+    print(json.dumps({
+        "backend": psf.backend.name,
+        "N": cfg.N,
+        "dt_s": cfg.dt_s,
+        "n_obstacles": n_static + n_moving,
+        "n_moving": n_moving,
+        "steps": args.steps,
+        "solve_ms_median": round(float(np.median(a)), 3),
+        "solve_ms_p95": round(float(np.percentile(a, 95)), 3),
+        "solve_ms_max": round(float(a.max()), 3),
+        "backend_ms_median": round(float(np.median(b)), 3),
+        "backend_ms_p95": round(float(np.percentile(b, 95)), 3),
+        "fallbacks": int(fallbacks),
+        "violations": int(violations),
+        "min_clearance_m": round(float(min_clear), 3),
+        "d_safe_m": psf.d_safe_m,
+        "distance_north_m": round(float(x[0]), 2),
+        "build_s": round(build_s, 2),
+    }))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,27 @@
+from __future__ import annotations
+
+import csv
+
+from asvtwin.cli import main
+
+
+def test_psf_demo_writes_png_and_csv(tmp_path, psf):
+    rc = main(["psf", "demo", "--out", str(tmp_path), "--seed", "3", "--duration", "20",
+               "--backend", psf.backend.name.split("-rti")[0]])
+    assert rc == 0
+    png = tmp_path / "psf_demo.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    rows = list(csv.DictReader((tmp_path / "psf_delta_u.csv").open()))
+    assert len(rows) == 40  # 20 s of 0.5 s stages
+    for r in rows:
+        du = float(r["delta_u_surge_N"])
+        assert abs(du - (float(r["u_L_surge_N"]) - float(r["u0_surge_N"]))) < 2e-4
+        assert r["fallback"] in ("none", "plan_tail", "braking")
+
+
+def test_psf_help(capsys):
+    try:
+        main(["psf", "demo", "--help"])
+    except SystemExit as exc:
+        assert exc.code == 0
+    assert "--seed" in capsys.readouterr().out

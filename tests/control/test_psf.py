@@ -1,0 +1,170 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from asvtwin.control import (
+    CircleObstacles,
+    CoastSegments,
+    MovingObstacles,
+    PsfConfig,
+    SafetyFilter,
+    available_backends,
+)
+from asvtwin.control.backends.base import RawSolution
+from asvtwin.errors import ConfigError, StateError
+
+FULL_AHEAD = np.array([2.0, 0.0, 0.0])
+
+
+def test_safe_input_passes_unchanged(psf):
+    psf.reset()
+    x = np.array([0.0, 0.0, 0.0, 0.3, 0.0, 0.0])
+    far = CircleObstacles([[60.0, 0.0], [0.0, -40.0]], [2.0, 3.0])
+    res = psf.filter(x, FULL_AHEAD, far, t_s=0.0)
+    assert res.fallback == "none" and res.success
+    # δ_u ≈ 0: within 0.5 % of the surge range and 1 % of the yaw range
+    assert abs(res.delta_u[0]) < 0.01
+    assert abs(res.delta_u[2]) < 0.003
+    assert res.x_pred.shape == (51, 6) and res.u_pred.shape == (50, 3)
+    assert res.obstacle_margin_m[1:].min() > 0
+    assert not any(a.kind == "circle" for a in res.active)
+
+
+def test_unsafe_input_is_corrected_and_explained(psf):
+    psf.reset()
+    x = np.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.0])
+    wall = CircleObstacles([[13.0, 0.3]], [3.0])
+    res = psf.filter(x, FULL_AHEAD, wall, t_s=0.0)
+    assert res.fallback == "none"
+    assert res.intervened
+    assert res.u0[0] < 1.9 or abs(res.u0[2]) > 0.05
+    np.testing.assert_allclose(res.delta_u, FULL_AHEAD - res.u0)
+    # the plan keeps d_safe over the horizon and d_safe + d_f at its end
+    assert res.obstacle_margin_m[1:].min() > -psf.certify_tol_m
+    kinds = {a.kind for a in res.active}
+    assert "circle" in kinds or "terminal_set" in kinds
+    assert res.critical or "terminal_set" in kinds
+
+
+def test_moving_obstacle_and_coast_are_respected(psf):
+    psf.reset()
+    x = np.array([0.0, 0.0, 0.0, 0.4, 0.0, 0.0])
+    mover = MovingObstacles.constant_velocity([[12.0, 8.0]], [[0.0, -0.4]], [1.5], N=50,
+                                              dt_s=0.5, covariances=[np.eye(2) * 0.1])
+    coast = CoastSegments([[30.0, -30.0, 30.0, 30.0]])
+    res = psf.filter(x, FULL_AHEAD, [mover, coast], t_s=0.0)
+    assert res.fallback == "none"
+    r_eff = mover.effective_radii()[0]
+    gap = np.linalg.norm(res.x_pred[:, :2] - mover.positions[0], axis=1) - r_eff
+    assert gap[1:].min() >= psf.d_safe_m - psf.certify_tol_m
+    assert coast.distances(res.x_pred[:, :2]).min() >= psf.d_safe_m - psf.certify_tol_m
+
+
+class _Failing:
+    """A backend whose solver always fails (e.g. iteration limit)."""
+
+    def __init__(self, inner):
+        self.inner, self.name, self.spec = inner, inner.name, inner.spec
+
+    def solve(self, x0, u_L, P, xg, ug):
+        N = self.spec.N
+        return RawSolution(x=np.tile(x0, (N + 1, 1)), u=np.tile(u_L, (N, 1)), max_slack=0.0,
+                           success=False, status="Maximum_Iterations_Exceeded",
+                           iterations=200, solve_time_s=0.0)
+
+
+def test_forced_failure_uses_plan_tail_then_braking(params, default_backend):
+    psf = SafetyFilter(params, config=PsfConfig(backend=default_backend))
+    x = np.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.05])
+    wall = CircleObstacles([[14.0, 0.0]], [3.0])
+    good = psf.filter(x, FULL_AHEAD, wall, t_s=0.0)
+    assert good.fallback == "none"
+    psf.backend = _Failing(psf.backend)
+    for k in (1, 2, 7):
+        bad = psf.filter(x, FULL_AHEAD, wall, t_s=0.5 * k)
+        assert bad.fallback == "plan_tail" and not bad.success
+        np.testing.assert_allclose(bad.u0, good.u_pred[k])
+        assert "not certified" in bad.status
+    late = psf.filter(x, FULL_AHEAD, wall, t_s=0.5 * 50)
+    assert late.fallback == "braking"
+    # braking backup: no thrust, yaw rate damped (τ_r = −k_r r), never the raw input
+    np.testing.assert_allclose(late.u0, [0.0, 0.0, -psf.terminal_set.k_r * 0.05])
+    assert not np.allclose(late.u0, FULL_AHEAD)
+
+
+def test_failure_without_any_plan_brakes(params, default_backend):
+    psf = SafetyFilter(params, config=PsfConfig(backend=default_backend))
+    psf.backend = _Failing(psf.backend)
+    res = psf.filter([0, 0, 0, 0.4, 0, 0], FULL_AHEAD, CircleObstacles([[9.0, 0]], [2.0]))
+    assert res.fallback == "braking" and res.u0[0] == 0.0
+
+
+def test_infeasible_from_start_is_a_documented_fallback(psf):
+    psf.reset()
+    # 0.3 m from the required clearance at 0.55 m/s straight at a large rock: no input
+    # avoids entering d_safe; the filter must not pass u_L through
+    x = np.array([0.0, 0.0, 0.0, 0.55, 0.0, 0.0])
+    rock = CircleObstacles([[0.0 + 1.6 + 10.0, 0.0]], [10.0])
+    res = psf.filter(x, FULL_AHEAD, rock, t_s=0.0)
+    assert not np.allclose(res.u0, FULL_AHEAD)
+    if res.fallback == "none":  # the solver found a certified escape after all
+        assert res.obstacle_margin_m[1:].min() > -psf.certify_tol_m
+    else:
+        assert res.fallback == "braking" and "not certified" in res.status
+
+
+@pytest.mark.parametrize(
+    "x, u, match",
+    [
+        ([0, 0, np.nan, 0, 0, 0], FULL_AHEAD, "non-finite psi"),
+        ([0, 0, 0, 0, 0, 0], [np.inf, 0, 0], "non-finite tau_u"),
+        ([0, 0, 0, 0, 0], FULL_AHEAD, "shape \\(6,\\)"),
+    ],
+)
+def test_bad_state_or_input_raises(psf, x, u, match):
+    with pytest.raises(StateError, match=match):
+        psf.filter(x, u, None, t_s=0.0)
+
+
+def test_obstacle_containing_own_ship_raises(psf):
+    with pytest.raises(StateError, match="contains the own ship"):
+        psf.filter([5.0, 5.0, 0, 0.2, 0, 0], FULL_AHEAD,
+                   CircleObstacles([[5.5, 5.0]], [1.0]), t_s=0.0)
+
+
+def test_bad_config_names_the_field():
+    with pytest.raises(ConfigError, match="PsfConfig.dt_s must be > 0, actually: -0.5"):
+        PsfConfig(dt_s=-0.5)
+    with pytest.raises(ConfigError, match="backend"):
+        SafetyFilter(__import__("asvtwin.vessel", fromlist=["x"]).cybership2(),
+                     config=PsfConfig(backend="gurobi"))
+
+
+@pytest.mark.skipif("acados" not in available_backends(), reason="acados extra missing")
+def test_backends_agree_on_u0(params, psf_ipopt):
+    ac = SafetyFilter(params, config=PsfConfig(backend="acados"))
+    rng = np.random.default_rng(11)
+    for _ in range(4):
+        x = np.array([0, 0, 0, rng.uniform(0.3, 0.5), 0, 0])
+        obs = CircleObstacles([[rng.uniform(12, 16), rng.uniform(-1, 1)]],
+                              [rng.uniform(2, 3)])
+        ac.reset()
+        psf_ipopt.reset()
+        for _ in range(6):  # RTI: one QP per call; repeated calls converge
+            ra = ac.filter(x, FULL_AHEAD, obs, t_s=0.0)
+        ri = psf_ipopt.filter(x, FULL_AHEAD, obs, t_s=0.0)
+        assert ra.fallback == ri.fallback == "none"
+        np.testing.assert_allclose(ra.u0[0], ri.u0[0], atol=0.05)  # N (2 N range)
+        np.testing.assert_allclose(ra.u0[2], ri.u0[2], atol=0.006)  # Nm (0.3 Nm range)
+
+
+def test_disturbance_estimate_enters_the_prediction(psf):
+    x = np.array([0.0, 0.0, 0.0, 0.2, 0.0, 0.0])
+    psf.reset()
+    calm = psf.filter(x, [0.0, 0.0, 0.0], None, t_s=0.0)
+    psf.reset()
+    pushed = psf.filter(x, [0.0, 0.0, 0.0], None, d_hat=[0.5, 0.0, 0.0], t_s=0.0)
+    # 0.5 N of following current/wind: the coasting plan travels further north
+    assert pushed.x_pred[-1, 0] > calm.x_pred[-1, 0] + 1.0
+    np.testing.assert_allclose(pushed.x_pred, psf.rollout(x, pushed.u_pred, [0.5, 0, 0]))
