@@ -84,6 +84,8 @@ def register(subparsers: Any) -> None:
     h.add_argument("--until", type=parse_time, default=None, help="ISO 8601 or UNIX s")
     h.add_argument("--limit", type=int, default=100)
     h.add_argument("--json", action="store_true", help="print JSON lines")
+    h.add_argument("--migrate", action="store_true",
+                   help="convert a database of an older schema in place (one transaction)")
     h.set_defaults(func=_history)
 
 
@@ -273,10 +275,16 @@ def _history(args: argparse.Namespace) -> int:
     if not Path(args.db).is_file():
         Console().print(f"[red]error:[/red] history database {args.db!r} does not exist")
         return 2
-    with SqliteHistory(args.db) as store:
-        reports = store.query_reports(default_scene().frame, mmsi=args.mmsi,
-                                      since_unix_s=args.since, until_unix_s=args.until,
-                                      limit=args.limit)
+    from asvtwin.errors import AsvTwinError
+
+    try:
+        with SqliteHistory(args.db, migrate=args.migrate) as store:
+            reports = store.query_reports(default_scene().frame, mmsi=args.mmsi,
+                                          since_unix_s=args.since, until_unix_s=args.until,
+                                          limit=args.limit)
+    except AsvTwinError as exc:
+        Console().print(f"[red]error:[/red] {exc}")
+        return 1
     if args.json:
         for r in reports:
             print(json.dumps({k: getattr(r, k) for k in r.__slots__}))

@@ -6,43 +6,57 @@ write-ahead log). Reports are kept in WGS84 (latitude/longitude, SI speeds and a
 recorded session can be replayed into any scene: :func:`replay_session` re-projects them into
 the scene's NED frame and merges reports and static data in time order.
 
-Tables (times are UNIX seconds; NULL is "not available"):
+Schema 2 (times are UNIX seconds). Dynamic reports arrive at up to thousands per second, so
+they are stored *columnar*, one row per appended batch (a "chunk", at most 8192 reports),
+instead of one SQLite row per report: a row-per-report insert with its two index entries
+costs about as much CPU as pyais's decode of the line, a chunk a few microseconds per batch.
 
-- ``reports(t_unix_s, mmsi, msg_type, lat_deg, lon_deg, sog_m_s, cog_rad, heading_rad,
-  rot_rad_s, nav_status, station)``, indexed on ``t_unix_s`` and ``(mmsi, t_unix_s)``;
-- ``static(t_unix_s, mmsi, msg_type, name, callsign, ship_type, imo, to_bow_m, to_stern_m,
-  to_port_m, to_starboard_m, draught_m, destination)``, indexed on ``(mmsi, t_unix_s)``;
-- ``weather(t_unix_s, wind_speed_m_s, wind_from_rad, air_temperature_c, air_pressure_pa,
-  relative_humidity, cloud_fraction, source)``, indexed on ``t_unix_s``.
+- ``report_chunks(id, t_min_s, t_max_s, n, stations, columns)``: ``id`` is the arrival order,
+  ``columns`` the little-endian column arrays of :data:`_COLUMNS` one after the other (every
+  field exactly as accepted, float64; NaN = not available, ``nav_status`` -1 = not available,
+  ``station`` an index into the JSON list ``stations``, 0 = unknown); indexed on ``t_min_s``;
+- ``report_chunk_mmsi(mmsi, t_min_s, t_max_s, chunk)``: which chunks hold a vessel, with the
+  chunk's time span (a clustered ``WITHOUT ROWID`` table on ``(mmsi, t_min_s, chunk)``);
+- ``static(...)`` and ``weather(...)``: one row per record as in schema 1 (low rate), indexed on
+  ``(mmsi, t_unix_s)`` and ``t_unix_s``; NULL is "not available";
+- ``meta``: ``schema`` = ``"2"`` and ``max_chunk_span_s``, the widest chunk time span, which
+  bounds the index range a time query scans.
+
+A database of schema 1 (one row per report) is refused with a message, or converted in one
+transaction with ``SqliteHistory(path, migrate=True)``.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import heapq
+import json
 import os
 import sqlite3
 from collections.abc import Iterable, Iterator, Sequence
+from itertools import repeat
+from operator import attrgetter
 from typing import Any, Protocol, Self, runtime_checkable
 
 import numpy as np
+from numpy.typing import NDArray
 
-from asvtwin.errors import SourceError
+from asvtwin.errors import ParameterError, SourceError
 from asvtwin.geo import LocalFrame
 from asvtwin.sources.ais.reports import AisReport, AisStatic, ReportBatch
 from asvtwin.sources.weather.series import WeatherSample
 
 __all__ = ["HistoryStore", "SqliteHistory", "replay_session"]
 
-_SCHEMA_VERSION = "1"
+_SCHEMA_VERSION = "2"
 _SCHEMA = """
-CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
-CREATE TABLE IF NOT EXISTS reports (
-    t_unix_s REAL NOT NULL, mmsi INTEGER NOT NULL, msg_type INTEGER NOT NULL,
-    lat_deg REAL NOT NULL, lon_deg REAL NOT NULL, sog_m_s REAL, cog_rad REAL,
-    heading_rad REAL, rot_rad_s REAL, nav_status INTEGER, station TEXT);
-CREATE INDEX IF NOT EXISTS reports_t ON reports (t_unix_s);
-CREATE INDEX IF NOT EXISTS reports_mmsi_t ON reports (mmsi, t_unix_s);
+CREATE TABLE IF NOT EXISTS report_chunks (
+    id INTEGER PRIMARY KEY, t_min_s REAL NOT NULL, t_max_s REAL NOT NULL, n INTEGER NOT NULL,
+    stations TEXT NOT NULL, columns BLOB NOT NULL);
+CREATE INDEX IF NOT EXISTS report_chunks_t ON report_chunks (t_min_s);
+CREATE TABLE IF NOT EXISTS report_chunk_mmsi (
+    mmsi INTEGER NOT NULL, t_min_s REAL NOT NULL, t_max_s REAL NOT NULL, chunk INTEGER NOT NULL,
+    PRIMARY KEY (mmsi, t_min_s, chunk)) WITHOUT ROWID;
 CREATE TABLE IF NOT EXISTS static (
     t_unix_s REAL NOT NULL, mmsi INTEGER NOT NULL, msg_type INTEGER NOT NULL, name TEXT,
     callsign TEXT, ship_type INTEGER, imo INTEGER, to_bow_m INTEGER, to_stern_m INTEGER,
@@ -53,11 +67,23 @@ CREATE TABLE IF NOT EXISTS weather (
     air_pressure_pa REAL, relative_humidity REAL, cloud_fraction REAL, source TEXT);
 CREATE INDEX IF NOT EXISTS weather_t ON weather (t_unix_s);
 """
-_REPORT_COLUMNS = ("t_unix_s, mmsi, msg_type, lat_deg, lon_deg, sog_m_s, cog_rad, heading_rad, "
-                   "rot_rad_s, nav_status, station")
+#: Column layout of a chunk blob: (field of ReportBatch, little-endian dtype), in this order.
+_COLUMNS: tuple[tuple[str, str], ...] = (
+    ("t_unix_s", "<f8"), ("mmsi", "<i8"), ("msg_type", "<i2"), ("lat_deg", "<f8"),
+    ("lon_deg", "<f8"), ("sog_m_s", "<f8"), ("cog_rad", "<f8"), ("heading_rad", "<f8"),
+    ("rot_rad_s", "<f8"), ("nav_status", "<i2"), ("station", "<u2"))
+_ROW_BYTES = sum(np.dtype(d).itemsize for _, d in _COLUMNS)
+_CHUNK_ROWS = 8192
+_SEQ_BITS = 14  # a report's arrival key: chunk id << 14 | row (rows < 8192 < 2**14)
+_SYNCHRONOUS = ("OFF", "NORMAL", "FULL", "EXTRA")
+_V1_COLUMNS = ("t_unix_s, mmsi, msg_type, lat_deg, lon_deg, sog_m_s, cog_rad, heading_rad, "
+               "rot_rad_s, nav_status, station")
 _STATIC_FIELDS = [f.name for f in dataclasses.fields(AisStatic)]
+_STATIC_ROW = attrgetter(*_STATIC_FIELDS)
 _WEATHER_FIELDS = ["t_unix_s", "wind_speed_m_s", "wind_from_rad", "air_temperature_c",
                    "air_pressure_pa", "relative_humidity", "cloud_fraction"]
+
+_Cols = dict[str, NDArray[Any]]
 
 
 @runtime_checkable
@@ -108,63 +134,140 @@ def _where(mmsi: int | None, since: float | None, until: float | None) -> tuple[
     return (" WHERE " + " AND ".join(clauses) if clauses else ""), args
 
 
+def _decode_chunk(n: int, blob: bytes) -> _Cols:
+    """The column arrays of one chunk blob (read-only views on ``blob``)."""
+    if len(blob) != n * _ROW_BYTES:
+        raise SourceError(f"history chunk of {n} reports: {n * _ROW_BYTES} bytes expected, "
+                          f"actually: {len(blob)}")
+    cols: _Cols = {}
+    offset = 0
+    for name, dtype in _COLUMNS:
+        cols[name] = np.frombuffer(blob, dtype, n, offset)
+        offset += n * np.dtype(dtype).itemsize
+    return cols
+
+
 class SqliteHistory:
     """The default :class:`HistoryStore`: one SQLite file (or ``":memory:"``).
+
+    Every :meth:`append_batch` is one transaction. With the default WAL journal and
+    ``synchronous="NORMAL"`` a process crash loses nothing that was appended, and a power cut
+    or OS crash can lose only the last transactions since the last WAL checkpoint, never
+    corrupt the file; ``synchronous="FULL"`` makes every append durable (one fsync each).
 
     Parameters
     ----------
     path : str or os.PathLike
         Database file, created if missing; ``":memory:"`` for a throw-away store.
     synchronous : str
-        SQLite ``synchronous`` pragma: ``"NORMAL"`` (default, safe with WAL) or ``"OFF"``.
+        SQLite ``synchronous`` pragma: ``"OFF"``, ``"NORMAL"`` (default), ``"FULL"``, ``"EXTRA"``.
+    migrate : bool
+        Convert a schema-1 database (one row per report) to schema 2 in one transaction
+        instead of refusing it.
 
     Raises
     ------
     SourceError
-        If the file cannot be opened or was written by an incompatible schema version.
+        If the file cannot be opened or holds another schema version (and ``migrate`` is
+        False or cannot convert it).
+    ParameterError
+        If ``synchronous`` is not one of the values above.
     """
 
     def __init__(self, path: str | os.PathLike[str] = ":memory:", *,
-                 synchronous: str = "NORMAL") -> None:
+                 synchronous: str = "NORMAL", migrate: bool = False) -> None:
         self.path = str(path)
+        if str(synchronous).upper() not in _SYNCHRONOUS:
+            raise ParameterError(f"synchronous: one of {_SYNCHRONOUS} expected, "
+                                 f"actually: {synchronous!r}")
         try:
             self._db = sqlite3.connect(self.path, check_same_thread=False)
             if self.path != ":memory:":
                 self._db.execute("PRAGMA journal_mode=WAL")
-            self._db.execute(f"PRAGMA synchronous={synchronous}")
+            self._db.execute(f"PRAGMA synchronous={synchronous.upper()}")
+            self._db.execute("CREATE TABLE IF NOT EXISTS meta "
+                             "(key TEXT PRIMARY KEY, value TEXT NOT NULL)")
+            meta = dict(self._db.execute("SELECT key, value FROM meta").fetchall())
+            found = meta.get("schema")
+            if found is None and self._db.execute(
+                    "SELECT 1 FROM sqlite_master WHERE name='reports'").fetchone():
+                found = "1?"  # a reports table without a version: not ours to write into
+            if found == "1" and migrate:
+                self._migrate_v1()
+            elif found is not None and found != _SCHEMA_VERSION:
+                hint = (" (one row per report); open it with SqliteHistory(path, migrate=True) "
+                        "to convert it" if found == "1" else "")
+                raise SourceError(f"{self.path}: history schema {_SCHEMA_VERSION} expected, "
+                                  f"actually: {found}{hint}")
             self._db.executescript(_SCHEMA)
-            row = self._db.execute("SELECT value FROM meta WHERE key='schema'").fetchone()
-            if row is None:
+            if found is None:
                 self._db.execute("INSERT INTO meta VALUES ('schema', ?)", (_SCHEMA_VERSION,))
                 self._db.commit()
-            elif row[0] != _SCHEMA_VERSION:
-                raise SourceError(f"{self.path}: history schema {_SCHEMA_VERSION} expected, "
-                                  f"actually: {row[0]}")
+            self._span_s = float(meta.get("max_chunk_span_s", 0.0))
         except sqlite3.Error as exc:
             raise SourceError(f"cannot open history database {self.path!r}: {exc}") from exc
 
     # ------------------------------------------------------------------ writes
     def append_batch(self, batch: ReportBatch) -> int:
-        n = 0
-        if len(batch):
-            # NaN binds as NULL in SQLite: "not available" stays absent
-            rows = zip(batch.t_unix_s.tolist(), batch.mmsi.tolist(), batch.msg_type.tolist(),
-                       batch.lat_deg.tolist(), batch.lon_deg.tolist(), batch.sog_m_s.tolist(),
-                       batch.cog_rad.tolist(), batch.heading_rad.tolist(),
-                       batch.rot_rad_s.tolist(), batch.nav_status.tolist(), batch.station)
-            self._db.executemany(f"INSERT INTO reports ({_REPORT_COLUMNS}) "
-                                 "VALUES (?,?,?,?,?,?,?,?,?,NULLIF(?,-1),?)", rows)
-            n += len(batch)
-        if batch.static:
-            n += self._insert_static(batch.static)
-        self._db.commit()
+        """Append a batch in one transaction (all of it or, on an error, none of it).
+
+        Returns
+        -------
+        int
+            Dynamic reports plus static records written.
+
+        Raises
+        ------
+        ParameterError
+            If a report time is not finite.
+        """
+        n = len(batch)
+        try:
+            for lo in range(0, n, _CHUNK_ROWS):
+                hi = min(n, lo + _CHUNK_ROWS)
+                self._insert_chunk({name: getattr(batch, name)[lo:hi]
+                                    for name, _ in _COLUMNS[:-1]}, batch.station[lo:hi])
+            if batch.static:
+                n += self._insert_static(batch.static)
+            self._db.commit()
+        except BaseException:
+            self._db.rollback()
+            raise
         return n
+
+    def _insert_chunk(self, cols: _Cols, stations: Sequence[str | None]) -> None:
+        t = cols["t_unix_s"]
+        if not np.isfinite(t).all():
+            bad = t[~np.isfinite(t)][0]
+            raise ParameterError(f"t_unix_s: a finite UNIX time [s] expected, actually: {bad}")
+        first = stations[0]
+        if stations.count(first) == len(stations):  # the usual case: one feed, one station
+            names = [] if first is None else [first]
+            cols["station"] = np.full(len(t), len(names), np.uint16)
+        else:
+            names = [s for s in dict.fromkeys(stations) if s is not None]
+            code = {None: 0} | {s: k + 1 for k, s in enumerate(names)}
+            cols["station"] = np.fromiter(map(code.__getitem__, stations), np.uint16, len(t))
+        blob = b"".join([np.ascontiguousarray(cols[name], dtype).tobytes()
+                         for name, dtype in _COLUMNS])
+        t_min, t_max = float(t.min()), float(t.max())
+        chunk = self._db.execute(
+            "INSERT INTO report_chunks (t_min_s, t_max_s, n, stations, columns) "
+            "VALUES (?,?,?,?,?)", (t_min, t_max, len(t), json.dumps(names), blob)).lastrowid
+        # the chunk's span stands for each vessel's (cheaper; a query filters the rows anyway)
+        self._db.executemany("INSERT INTO report_chunk_mmsi VALUES (?,?,?,?)",
+                             zip(np.unique(cols["mmsi"]).tolist(), repeat(t_min), repeat(t_max),
+                                 repeat(chunk)))
+        if t_max - t_min > self._span_s:
+            self._span_s = t_max - t_min
+            self._db.execute("INSERT OR REPLACE INTO meta VALUES ('max_chunk_span_s', ?)",
+                             (repr(self._span_s),))
 
     def append_reports(self, reports: Sequence[AisReport]) -> int:
         return self.append_batch(ReportBatch.from_reports(list(reports)))
 
     def _insert_static(self, records: Iterable[AisStatic]) -> int:
-        rows = [tuple(getattr(s, f) for f in _STATIC_FIELDS) for s in records]
+        rows = list(map(_STATIC_ROW, records))
         self._db.executemany(f"INSERT INTO static ({','.join(_STATIC_FIELDS)}) "
                              f"VALUES ({','.join('?' * len(_STATIC_FIELDS))})", rows)
         return len(rows)
@@ -181,6 +284,32 @@ class SqliteHistory:
         self._db.commit()
         return len(rows)
 
+    def _migrate_v1(self) -> None:
+        """Schema 1 -> 2: re-write ``reports`` as chunks, in one transaction."""
+        nan = float("nan")
+        try:
+            cur = self._db.cursor()
+            cur.execute("BEGIN")  # DDL included: a failed or interrupted migration leaves v1
+            for statement in filter(str.strip, _SCHEMA.split(";")):
+                cur.execute(statement)
+            self._span_s = 0.0
+            rows_cur = self._db.execute(
+                f"SELECT {_V1_COLUMNS} FROM reports ORDER BY t_unix_s, rowid")
+            while rows := rows_cur.fetchmany(_CHUNK_ROWS):
+                c = list(zip(*rows))
+                cols: _Cols = {name: np.array([nan if v is None else v for v in c[k]],
+                                              np.float64)
+                               for k, (name, _) in enumerate(_COLUMNS[:9])}
+                cols["nav_status"] = np.array([-1 if v is None else v for v in c[9]], np.int64)
+                self._insert_chunk(cols, c[10])
+            cur.execute("DROP TABLE reports")
+            cur.execute("UPDATE meta SET value=? WHERE key='schema'", (_SCHEMA_VERSION,))
+            self._db.commit()
+        except (sqlite3.Error, ParameterError) as exc:
+            self._db.rollback()
+            raise SourceError(f"{self.path}: cannot migrate history schema 1 to "
+                              f"{_SCHEMA_VERSION}: {exc}") from exc
+
     # ------------------------------------------------------------------ reads
     def query_reports(self, frame: LocalFrame, *, mmsi: int | None = None,
                       since_unix_s: float | None = None, until_unix_s: float | None = None,
@@ -190,22 +319,84 @@ class SqliteHistory:
 
     def iter_reports(self, frame: LocalFrame, *, mmsi: int | None = None,
                      since_unix_s: float | None = None, until_unix_s: float | None = None,
-                     limit: int | None = None, chunk: int = 4096) -> Iterator[AisReport]:
-        """Like :meth:`query_reports` but streamed in chunks (for long sessions)."""
-        where, args = _where(mmsi, since_unix_s, until_unix_s)
-        sql = f"SELECT {_REPORT_COLUMNS} FROM reports{where} ORDER BY t_unix_s, rowid"
-        if limit is not None:
-            sql += f" LIMIT {int(limit)}"
-        cur = self._db.execute(sql, args)
-        while rows := cur.fetchmany(chunk):
-            lat = np.array([r[3] for r in rows])
-            lon = np.array([r[4] for r in rows])
-            north, east = frame.to_ned(lat, lon)
-            for r, n, e in zip(rows, north.tolist(), east.tolist()):
-                yield AisReport(mmsi=r[1], t_unix_s=r[0], msg_type=r[2], north_m=n, east_m=e,
-                                lat_deg=r[3], lon_deg=r[4], sog_m_s=r[5], cog_rad=r[6],
-                                heading_rad=r[7], rot_rad_s=r[8], nav_status=r[9],
-                                station=r[10])
+                     limit: int | None = None) -> Iterator[AisReport]:
+        """Like :meth:`query_reports` but streamed chunk by chunk (for long sessions)."""
+        for batch in self.iter_batches(frame, mmsi=mmsi, since_unix_s=since_unix_s,
+                                       until_unix_s=until_unix_s, limit=limit):
+            yield from batch.reports()
+
+    def iter_batches(self, frame: LocalFrame, *, mmsi: int | None = None,
+                     since_unix_s: float | None = None, until_unix_s: float | None = None,
+                     limit: int | None = None) -> Iterator[ReportBatch]:
+        """Stored reports as columnar batches, in time order (ties: arrival order).
+
+        Parameters
+        ----------
+        frame : LocalFrame
+            Frame the WGS84 positions are projected into (``north_m``, ``east_m``).
+        mmsi : int, optional
+            Only this vessel (found through ``report_chunk_mmsi``).
+        since_unix_s, until_unix_s : float, optional
+            Inclusive time range [UNIX s].
+        limit : int, optional
+            At most this many reports.
+        """
+        args: list[Any] = []
+        if mmsi is None:
+            sql = "SELECT id, t_min_s FROM report_chunks WHERE 1"
+        else:
+            sql = "SELECT chunk, t_min_s FROM report_chunk_mmsi WHERE mmsi = ?"
+            args.append(int(mmsi))
+        if since_unix_s is not None:  # a chunk starts at most max_chunk_span_s before it ends
+            sql += " AND t_min_s >= ? AND t_max_s >= ?"
+            args += [float(since_unix_s) - self._span_s, float(since_unix_s)]
+        if until_unix_s is not None:
+            sql += " AND t_min_s <= ?"
+            args.append(float(until_unix_s))
+        chunks = self._db.execute(sql + " ORDER BY 2, 1", args).fetchall()
+        left = np.inf if limit is None else int(limit)
+        pending: _Cols | None = None
+        for chunk, t_start in [*chunks, (None, np.inf)]:
+            if pending is not None:  # rows before t_start: no later chunk can precede them
+                ready = int(np.searchsorted(pending["t_unix_s"], t_start, side="left"))
+                if ready:
+                    done = {k: v[:min(ready, left)] for k, v in pending.items()}
+                    pending = {k: v[ready:] for k, v in pending.items()}
+                    left -= len(done["seq"])
+                    yield self._batch(frame, done)
+                    if left <= 0:
+                        return
+            if chunk is None:
+                break
+            n, names, blob = self._db.execute(
+                "SELECT n, stations, columns FROM report_chunks WHERE id = ?", (chunk,)).fetchone()
+            cols = _decode_chunk(n, blob)
+            keep = np.ones(n, bool)
+            if mmsi is not None:
+                keep &= cols["mmsi"] == int(mmsi)
+            if since_unix_s is not None:
+                keep &= cols["t_unix_s"] >= since_unix_s
+            if until_unix_s is not None:
+                keep &= cols["t_unix_s"] <= until_unix_s
+            rows = np.flatnonzero(keep)
+            new = {k: v[rows] for k, v in cols.items()}
+            new["seq"] = (np.int64(chunk) << _SEQ_BITS) | rows
+            new["station_name"] = np.array([None, *json.loads(names)], object)[new["station"]]
+            if pending is not None:
+                new = {k: np.concatenate((pending[k], v)) for k, v in new.items()}
+            order = np.lexsort((new["seq"], new["t_unix_s"]))
+            pending = {k: v[order] for k, v in new.items()}
+
+    @staticmethod
+    def _batch(frame: LocalFrame, c: _Cols) -> ReportBatch:
+        north, east = frame.to_ned(c["lat_deg"], c["lon_deg"])
+        f8 = {k: np.array(c[k], np.float64) for k in (
+            "t_unix_s", "lat_deg", "lon_deg", "sog_m_s", "cog_rad", "heading_rad", "rot_rad_s")}
+        return ReportBatch(
+            mmsi=np.array(c["mmsi"], np.int64), msg_type=np.array(c["msg_type"], np.int64),
+            north_m=np.asarray(north, np.float64), east_m=np.asarray(east, np.float64),
+            nav_status=np.array(c["nav_status"], np.int64),
+            station=tuple(c["station_name"].tolist()), **f8)
 
     def query_static(self, *, mmsi: int | None = None, since_unix_s: float | None = None,
                      until_unix_s: float | None = None) -> list[AisStatic]:
@@ -224,11 +415,12 @@ class SqliteHistory:
 
     def count_reports(self) -> int:
         """Number of stored dynamic reports."""
-        return int(self._db.execute("SELECT COUNT(*) FROM reports").fetchone()[0])
+        return int(self._db.execute("SELECT TOTAL(n) FROM report_chunks").fetchone()[0])
 
     def time_span(self) -> tuple[float, float] | None:
         """First and last report time [UNIX s], None when empty."""
-        lo, hi = self._db.execute("SELECT MIN(t_unix_s), MAX(t_unix_s) FROM reports").fetchone()
+        lo, hi = self._db.execute(
+            "SELECT MIN(t_min_s), MAX(t_max_s) FROM report_chunks").fetchone()
         return None if lo is None else (float(lo), float(hi))
 
     def close(self) -> None:

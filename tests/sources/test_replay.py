@@ -144,12 +144,19 @@ def test_history_round_trip_with_not_available_as_null(tmp_path) -> None:
         w = store.query_weather()
         assert len(w) == 3 and w[0].air_pressure_pa == fc.series.air_pressure_pa[0]
         assert store.time_span() == (T0, T0 + 40) and store.count_reports() == 6
-    names = {row[0] for row in sqlite3.connect(db).execute(
-        "SELECT name FROM sqlite_master WHERE type='index'")}
-    assert {"reports_t", "reports_mmsi_t", "weather_t"} <= names
-    plan = " ".join(str(r) for r in sqlite3.connect(db).execute(
-        "EXPLAIN QUERY PLAN SELECT * FROM reports WHERE mmsi=1 AND t_unix_s>0"))
-    assert "reports_mmsi_t" in plan
+    con = sqlite3.connect(db)
+    names = {row[0] for row in con.execute("SELECT name FROM sqlite_master WHERE type='index'")}
+    assert {"report_chunks_t", "static_mmsi_t", "weather_t"} <= names
+    # the queries behind query_reports seek an index, never scan the table
+    by_time = " ".join(str(r) for r in con.execute(
+        "EXPLAIN QUERY PLAN SELECT id, t_min_s FROM report_chunks WHERE 1 AND t_min_s >= 0 "
+        "AND t_max_s >= 0 AND t_min_s <= 1 ORDER BY 2, 1"))
+    assert "USING INDEX report_chunks_t (t_min_s>? AND t_min_s<?)" in by_time, by_time
+    by_mmsi = " ".join(str(r) for r in con.execute(
+        "EXPLAIN QUERY PLAN SELECT chunk, t_min_s FROM report_chunk_mmsi WHERE mmsi = 1 "
+        "AND t_min_s >= 0 AND t_max_s >= 0 AND t_min_s <= 1 ORDER BY 2, 1"))
+    assert "USING PRIMARY KEY (mmsi=? AND t_min_s>? AND t_min_s<?)" in by_mmsi, by_mmsi
+    con.close()
 
 
 def test_schema_version_is_checked(tmp_path) -> None:
@@ -159,8 +166,10 @@ def test_schema_version_is_checked(tmp_path) -> None:
     con.execute("UPDATE meta SET value='0' WHERE key='schema'")
     con.commit()
     con.close()
-    with pytest.raises(SourceError, match="schema 1 expected, actually: 0"):
+    with pytest.raises(SourceError, match="schema 2 expected, actually: 0"):
         SqliteHistory(db)
+    with pytest.raises(SourceError, match="schema 2 expected, actually: 0"):
+        SqliteHistory(db, migrate=True)  # only schema 1 can be converted
 
 
 def test_recorded_session_replays_to_the_same_picture(tmp_path) -> None:

@@ -445,10 +445,14 @@ class AisPipeline:
         if self._hwm is None or not seen:
             return
         oldest = self._hwm - self._dedup_s
-        while seen:
-            payload, t = next(iter(seen.items()))
+        # one pass, then delete: next(iter(seen)) after each deletion would rescan the freed
+        # slots at the front of the dict every time (quadratic in the payloads per batch)
+        stale = []
+        for payload, t in seen.items():
             if t >= oldest:
                 break
+            stale.append(payload)
+        for payload in stale:
             del seen[payload]
         if len(seen) > 200_000:  # a pathological feed (times far apart): start afresh
             seen.clear()
