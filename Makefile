@@ -12,8 +12,13 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
+# The acados extra vendors a slim casadi over the official one's files: reinstall the
+# official wheel afterwards and check IPOPT is there (docs/psf.md).
+CASADI ?= casadi==3.8.2
 $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[test,acados]'
+	$(BIN)/python -m pip install --quiet --force-reinstall --no-deps '$(CASADI)'
+	$(BIN)/python -c "import casadi; assert casadi.has_nlpsol('ipopt'), 'casadi lost IPOPT'"
 	touch $@
 
 run: $(VENV)/.installed-test

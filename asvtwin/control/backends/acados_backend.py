@@ -28,6 +28,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from asvtwin.control.backends.acados_io import AcadosIO
 from asvtwin.control.backends.base import RawSolution
 from asvtwin.control.backends.ocp import (
     OcpSpec,
@@ -62,8 +63,9 @@ def _setup_environment() -> Any:
     if not ca.has_nlpsol("ipopt"):
         raise SolverError(
             "the casadi in this environment has no IPOPT: comma-deps-acados's slim casadi "
-            "replaced the official wheel; install both in one command: "
-            "pip install comma-deps-acados casadi==3.8.2"
+            "replaced the official wheel's files; restore it with: "
+            "pip install --force-reinstall --no-deps casadi==3.8.2 "
+            "(or 'make test', which does this after installing the acados extra)"
         )
     return acados
 
@@ -199,73 +201,50 @@ class AcadosBackend:
             self._solver.cost_set(k, "W", W0 * s.later_weight)
 
     def _bind_fast_access(self, model_name: str) -> None:
-        """Bind the C accessors once (acados_template re-declares argtypes on every
-        get/set call, which costs more than the QP at N = 50)."""
-        S = self._solver
-        lib = S.shared_lib
-        vp, ci, cc = ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p
-        self._out_set = lib.ocp_nlp_out_set
-        self._out_set.argtypes = [vp, vp, vp, ci, cc, vp]
-        self._out_get = lib.ocp_nlp_out_get
-        self._out_get.argtypes = [vp, vp, vp, ci, cc, vp]
-        self._cost_set = lib.ocp_nlp_cost_model_set
-        self._cost_set.argtypes = [vp, vp, vp, ci, cc, vp]
-        self._con_set = lib.ocp_nlp_constraints_model_set
-        self._con_set.argtypes = [vp, vp, vp, ci, cc, vp]
-        self._upd_p = getattr(lib, f"{model_name}_acados_update_params")
-        self._upd_p.argtypes = [vp, ci, vp, ci]
-        self._upd_p.restype = ci
-        self._ptrs = (S.nlp_config, S.nlp_dims, S.nlp_out, S.nlp_in)
-
-    def _set_out(self, k: int, field: bytes, v: NDArray[np.float64]) -> None:
-        cfg, dims, out, _ = self._ptrs
-        self._out_set(cfg, dims, out, k, field, v.ctypes.data)
-
-    def _get_out(self, field: bytes, n: int, stages: int) -> NDArray[np.float64]:
-        cfg, dims, out, _ = self._ptrs
-        res = np.empty((stages, n))
-        for k in range(stages):
-            self._out_get(cfg, dims, out, k, field, res[k].ctypes.data)
-        return res
+        """Bind the C entry points once (acados_template re-declares ``argtypes`` on every
+        get/set call) and compile the numba loops that drive them (:mod:`.acados_io`)."""
+        s = self.spec
+        self._io = AcadosIO(self._solver, model_name, s.N, s.n_p)
+        self._lb = np.asarray(s.u_lb, dtype=float)
+        self._ub = np.asarray(s.u_ub, dtype=float)
+        # inputs of a call, reused (the loops need C-contiguous float64 buffers)
+        self._x0 = np.zeros(6)
+        self._yref = np.zeros(3)
+        self._P = np.zeros((s.N + 1, s.n_p))
+        self._Xg = np.zeros((s.N + 1, 6))
+        self._Ug = np.zeros((s.N, 3))
+        # compile (or load from numba's cache) the loops now, not in the first call; the
+        # values set here are overwritten by every solve
+        self._io.read()
+        self._io.load(self._x0, self._yref, self._P, self._Xg, self._Ug)
 
     def solve(self, x0: NDArray[np.float64], u_L: NDArray[np.float64],
               stage_params: NDArray[np.float64], x_guess: NDArray[np.float64],
               u_guess: NDArray[np.float64]) -> RawSolution:
         """Up to ``rti_steps`` SQP-RTI steps; see :class:`~.base.Backend`."""
-        s, S = self.spec, self._solver
-        N = s.N
-        cfg, dims, _, nlp_in = self._ptrs
-        x0 = np.ascontiguousarray(x0, dtype=float)
-        self._con_set(cfg, dims, nlp_in, 0, b"lbx", x0.ctypes.data)  # eq. (b)
-        self._con_set(cfg, dims, nlp_in, 0, b"ubx", x0.ctypes.data)
-        yref = np.ascontiguousarray(u_L, dtype=float)
-        P = np.ascontiguousarray(stage_params, dtype=float)
-        Xg = np.ascontiguousarray(x_guess, dtype=float)
-        Ug = np.ascontiguousarray(np.clip(u_guess, s.u_lb, s.u_ub), dtype=float)
-        for k in range(N):
-            self._cost_set(cfg, dims, nlp_in, k, b"yref", yref.ctypes.data)
-            self._upd_p(S.capsule, k, P[k].ctypes.data, s.n_p)
-            self._set_out(k, b"x", Xg[k])
-            self._set_out(k, b"u", Ug[k])
-        self._upd_p(S.capsule, N, P[N].ctypes.data, s.n_p)
-        self._set_out(N, b"x", Xg[N])
+        io = self._io
+        self._x0[:] = x0  # eq. (b)
+        self._yref[:] = u_L
+        self._P[:] = stage_params
+        self._Xg[:] = x_guess
+        np.clip(u_guess, self._lb, self._ub, out=self._Ug)
+        io.load(self._x0, self._yref, self._P, self._Xg, self._Ug)
         t0 = time.perf_counter()
         status, qp_status, iters = 0, 0, 0
-        prev_u = Ug
+        prev_u = self._Ug
         for _ in range(self.rti_steps):
-            status = S.solve()
+            status = io.solve()
             iters += 1
             qp_status = self._qp_status() if status == 0 else status
             if status != 0 or qp_status != 0 or self.rti_steps == 1:
                 break
-            U = self._get_out(b"u", 3, N)
+            U = io.read_u().copy()
             step = float(np.max(np.abs(U - prev_u)))
             prev_u = U
             if step < self.step_tol:
                 break
         dt = time.perf_counter() - t0
-        X = self._get_out(b"x", 6, N + 1)
-        U = self._get_out(b"u", 3, N)
+        X, U = io.read()
         ok = status == 0 and qp_status == 0 and bool(np.all(np.isfinite(U)))
         word = "ok" if ok else f"acados status {status}, QP status {qp_status}"
         # slacks are not read back: the filter certifies the plan by simulation instead
@@ -274,5 +253,5 @@ class AcadosBackend:
 
     def _qp_status(self) -> int:
         """Status of the last QP (0 ok); RTI reports success even when the QP did not."""
-        stat = np.atleast_2d(self._solver.get_stats("statistics"))
+        stat = np.atleast_2d(self._io.statistics())
         return int(stat[1, -1]) if stat.shape[0] > 1 else 0

@@ -1,0 +1,89 @@
+"""Settings of the tracker (see :mod:`asvtwin.tracking.tracker` for their roles)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from asvtwin.errors import ParameterError
+from asvtwin.tracking.clustering import ClusterConfig
+from asvtwin.tracking.fusion import FUSION_METHODS
+from asvtwin.tracking.measurement import AisModel, LidarModel
+
+__all__ = ["TrackerConfig"]
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """Tracker settings (see the module docstring for their roles).
+
+    Attributes
+    ----------
+    q : float
+        Acceleration noise spectral density of the CV model [m²/s³].
+    fusion : {"product", "gain_weighted", "covariance_intersection"}
+        Fusion of LiDAR and AIS.
+    gate_probability : float
+        χ² gate probability for LiDAR and untied AIS association.
+    tied_gate_probability : float
+        Looser gate for AIS reports of a tied MMSI.
+    confirm_m, confirm_n : int
+        M-of-N confirmation (1 <= M <= N <= 30).
+    max_coast_s, max_coast_ais_s : float
+        Deletion after this long without an update [s] (without / with an MMSI tie).
+    max_position_std_m : float
+        Deletion when the largest position standard deviation exceeds this [m].
+    init_velocity_std_m_s : float
+        Velocity standard deviation of a track started from a LiDAR centre [m/s].
+    min_separation_m : float
+        No new LiDAR track within this distance of an existing track (or within its
+        fitted semi-major axis + 10 m, or inside its gate) [m]: fragments of a partly
+        occluded hull must not start tracks.
+    fusion_window_s : float
+        For gain weighting / CI: a per-sensor filter counts as fresh this long [s].
+    ais_reseed_after : int
+        Consecutive rejected reports of a tied MMSI after which the tie is dropped.
+    merge_probability : float
+        Two tracks whose positions and velocities are this close in χ² terms ...
+    merge_after : int
+        ... for this many ticks in a row are merged (duplicates of one vessel).
+    cluster, lidar, ais : ClusterConfig, LidarModel, AisModel
+        Segmentation and measurement models.
+    """
+
+    q: float = 0.01
+    fusion: str = "product"
+    gate_probability: float = 0.999
+    tied_gate_probability: float = 0.999999
+    confirm_m: int = 3
+    confirm_n: int = 5
+    max_coast_s: float = 15.0
+    max_coast_ais_s: float = 180.0
+    max_position_std_m: float = 150.0
+    init_velocity_std_m_s: float = 8.0
+    min_separation_m: float = 30.0
+    fusion_window_s: float = 30.0
+    ais_reseed_after: int = 3
+    merge_probability: float = 0.99
+    merge_after: int = 3
+    cluster: ClusterConfig = field(default_factory=ClusterConfig)
+    lidar: LidarModel = field(default_factory=LidarModel)
+    ais: AisModel = field(default_factory=AisModel)
+
+    def __post_init__(self) -> None:
+        if self.fusion not in FUSION_METHODS:
+            raise ParameterError(f"TrackerConfig.fusion must be one of {FUSION_METHODS}, actually: {self.fusion!r}")
+        if not 1 <= self.confirm_m <= self.confirm_n <= 30:
+            raise ParameterError(
+                f"TrackerConfig needs 1 <= confirm_m <= confirm_n <= 30, actually: m={self.confirm_m}, n={self.confirm_n}")
+        for name in ("q", "max_coast_s", "max_coast_ais_s", "max_position_std_m", "init_velocity_std_m_s",
+                     "min_separation_m", "fusion_window_s"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0.0):
+                raise ParameterError(f"TrackerConfig.{name} must be finite and >= 0, actually: {v!r}")
+        if not 0.0 < self.merge_probability < 1.0 or self.merge_after < 1:
+            raise ParameterError(f"TrackerConfig needs merge_probability in (0, 1) and merge_after >= 1, "
+                                 f"actually: {self.merge_probability!r}, {self.merge_after!r}")
+        if self.ais_reseed_after < 1:
+            raise ParameterError(f"TrackerConfig.ais_reseed_after must be >= 1, actually: {self.ais_reseed_after!r}")

@@ -1,0 +1,450 @@
+"""The multi-target tracker: LiDAR clusters and AIS reports in, a snapshot of tracks out.
+
+One :meth:`Tracker.step` per tick, with the time passed in (Stone Soup's components,
+light and batched over tracks):
+
+1. **predictor** — every track (the fused estimate and the two per-sensor filters) is
+   propagated to ``t_s`` with the CV model (:func:`~asvtwin.tracking.kalman.cv_predict`);
+2. **LiDAR** — the scan is segmented (coast returns removed with the land polygons),
+   each cluster fitted (Halir–Flusser) and turned into a centre measurement;
+   **associator**: Mahalanobis gate + GNN;
+3. **AIS** — reports become position/velocity measurements at ``t_s``; a report whose MMSI
+   is tied to a track goes to that track (if it passes a loose gate: a report far from its
+   own track is rejected and counted, and after ``ais_reseed_after`` rejections in a row
+   the tie is dropped); the others are associated by GNN with the untied tracks, which
+   then get tied to the MMSI;
+4. **updater** — fusion of whatever arrived (the paper's product of Gaussians by default,
+   or Chen 2019 / covariance intersection over the per-sensor filters);
+5. **initiator** — unassociated clusters (not too close to a track) and unassociated AIS
+   reports start tentative tracks; **confirmation** by M-of-N hits (or two AIS reports);
+6. **deleter** — tentative tracks that can no longer reach M of N, tracks not updated for
+   ``max_coast_s`` (``max_coast_ais_s`` when tied to an MMSI), tracks whose position
+   spread exceeds ``max_position_std_m``, tracks well inside land.
+
+Bad input never raises: time going backwards, non-finite times, bad AIS reports, NaN
+returns, tiny clusters are counted in :attr:`Tracker.counters` and skipped.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from types import MappingProxyType
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from asvtwin.geo.land import LandMask
+from asvtwin.sensors.lidar import LidarScan
+from asvtwin.tracking.association import gate_threshold, gated_costs, gnn_assign
+from asvtwin.tracking.clustering import Clusters, cluster_scan
+from asvtwin.tracking.config import TrackerConfig
+from asvtwin.tracking.fusion import (
+    fuse_covariance_intersection,
+    fuse_gain_weighted,
+    fuse_product,
+)
+from asvtwin.tracking.kalman import H_FULL, H_POSITION, cv_predict, kalman_update
+from asvtwin.tracking.measurement import (
+    AisMeasurement,
+    ais_measurements,
+    lidar_measurements,
+)
+from asvtwin.tracking.snapshot import TrackSnapshot
+
+__all__ = ["Tracker"]
+
+_F8 = NDArray[np.float64]
+_log = logging.getLogger(__name__)
+
+
+# per-track arrays, in this order; (shape tail, dtype, fill)
+_FIELDS: dict[str, tuple[tuple[int, ...], type, float]] = {
+    "ids": ((), np.int64, -1), "mmsi": ((), np.int64, -1),
+    "x": ((4,), np.float64, 0.0), "P": ((4, 4), np.float64, 0.0),
+    "xL": ((4,), np.float64, 0.0), "PL": ((4, 4), np.float64, 0.0), "GL": ((4, 4), np.float64, 0.0),
+    "xA": ((4,), np.float64, 0.0), "PA": ((4, 4), np.float64, 0.0), "GA": ((4, 4), np.float64, 0.0),
+    "hasL": ((), np.bool_, False), "hasA": ((), np.bool_, False),
+    "tL": ((), np.float64, -np.inf), "tA": ((), np.float64, -np.inf), "t_last": ((), np.float64, 0.0),
+    "hist": ((), np.int64, 0), "age": ((), np.int64, 0), "n_ais": ((), np.int64, 0),
+    "ais_rej": ((), np.int64, 0), "confirmed": ((), np.bool_, False), "axes": ((2,), np.float64, np.nan),
+    "gotL": ((), np.bool_, False), "gotA": ((), np.bool_, False),
+}
+
+
+@njit(cache=True)
+def _coincident(x, P, mmsi, gamma):  # type: ignore[no-untyped-def]
+    """Pairs (i < j) whose position and velocity differences are within the χ² gate."""
+    n = x.shape[0]
+    out_i, out_j = [], []
+    for i in range(n):
+        for j in range(i + 1, n):
+            if mmsi[i] >= 0 and mmsi[j] >= 0:
+                continue  # two identified vessels are never one
+            ok = True
+            for o in (0, 2):  # position block, then velocity block
+                a = P[i, o, o] + P[j, o, o]
+                b = P[i, o, o + 1] + P[j, o, o + 1]
+                c = P[i, o + 1, o + 1] + P[j, o + 1, o + 1]
+                dn, de = x[i, o] - x[j, o], x[i, o + 1] - x[j, o + 1]
+                det = a * c - b * b
+                if not (det > 0.0 and (c * dn * dn - 2.0 * b * dn * de + a * de * de) / det <= gamma):
+                    ok = False
+                    break
+            if ok:
+                out_i.append(i)
+                out_j.append(j)
+    return np.array(out_i, np.int64), np.array(out_j, np.int64)
+
+
+class Tracker:
+    """Multi-target tracker with LiDAR–AIS fusion.
+
+    Parameters
+    ----------
+    config : TrackerConfig, optional
+        Settings.
+    land : LandMask or None
+        The scene's coast (coast-return removal, deletion of tracks on land).
+    """
+
+    def __init__(self, config: TrackerConfig | None = None, land: LandMask | None = None) -> None:
+        self.config = config or TrackerConfig()
+        self.land = land
+        self._gL = gate_threshold(self.config.gate_probability, 2)
+        self._gA_tied = gate_threshold(self.config.tied_gate_probability, 2)
+        self._gM = gate_threshold(self.config.merge_probability, 2)
+        self._pairs: dict[tuple[int, int], int] = {}
+        self._t: float | None = None
+        self._next_id = 1
+        self._a: dict[str, np.ndarray] = {k: np.empty((0, *s), d) for k, (s, d, _) in _FIELDS.items()}
+        self._counts: dict[str, int] = dict.fromkeys((
+            "ticks", "time_reversals", "bad_time", "clusters", "coast_points", "invalid_points",
+            "small_clusters", "fit_fallbacks", "lidar_unassociated", "init_suppressed",
+            "ais_reports", "ais_rejected", "ais_stale", "ais_gated_out", "ais_reseeded",
+            "tracks_created", "tracks_confirmed", "tracks_deleted", "tracks_merged", "deleted_on_land",
+            "nan_guard"), 0)
+        self._warned: set[str] = set()
+        self._last = self._snapshot(0.0)
+
+    # ------------------------------------------------------------------ helpers
+    @property
+    def counters(self) -> MappingProxyType[str, int]:
+        """Counts of everything skipped, created and deleted so far (read-only)."""
+        return MappingProxyType(dict(self._counts))
+
+    def _count(self, key: str, k: int = 1, msg: str = "") -> None:
+        if k <= 0:
+            return
+        self._counts[key] += int(k)
+        if msg and key not in self._warned:
+            self._warned.add(key)
+            _log.warning("%s (counted in Tracker.counters[%r]; logged once)", msg, key)
+
+    def _append(self, rows: dict[str, np.ndarray]) -> None:
+        k = len(next(iter(rows.values())))
+        for name, (shape, dtype, fill) in _FIELDS.items():
+            new = rows[name] if name in rows else np.full((k, *shape), fill, dtype)
+            self._a[name] = np.concatenate([self._a[name], np.asarray(new, dtype).reshape(k, *shape)])
+        self._count("tracks_created", k)
+
+    def _keep(self, mask: NDArray[np.bool_]) -> None:
+        for name in self._a:
+            self._a[name] = self._a[name][mask]
+
+    def _new_ids(self, k: int) -> NDArray[np.int64]:
+        ids = np.arange(self._next_id, self._next_id + k, dtype=np.int64)
+        self._next_id += k
+        return ids
+
+    # ------------------------------------------------------------------ the tick
+    def step(
+        self,
+        t_s: float,
+        scan: LidarScan | Clusters | None = None,
+        ais: Sequence[AisMeasurement] = (),
+    ) -> TrackSnapshot:
+        """Advance to ``t_s`` and take in one LiDAR scan and the AIS reports since the last tick.
+
+        Parameters
+        ----------
+        t_s : float
+            Tick time [s] since the scene start; must not decrease.
+        scan : LidarScan or Clusters or None
+            The scan taken at ``t_s`` (or clusters from another segmenter), or None.
+        ais : sequence of AisMeasurement
+            AIS reports received since the last tick.
+
+        Returns
+        -------
+        TrackSnapshot
+            All tracks (tentative ones included) at ``t_s``.
+        """
+        cfg, a = self.config, self._a
+        t = float(t_s)
+        if not np.isfinite(t):
+            self._count("bad_time", 1, f"non-finite tick time {t_s!r} skipped")
+            return self._last
+        if self._t is not None and t < self._t:
+            self._count("time_reversals", 1, f"tick time went backwards ({t} s < {self._t} s), tick skipped")
+            return self._last
+        dt = 0.0 if self._t is None else t - self._t
+        self._t = t
+        self._counts["ticks"] += 1
+        n = a["x"].shape[0]
+
+        # 1. predictor
+        if n:
+            a["x"], a["P"] = cv_predict(a["x"], a["P"], dt, cfg.q)
+            a["xL"], a["PL"] = cv_predict(a["xL"], a["PL"], dt, cfg.q)
+            a["xA"], a["PA"] = cv_predict(a["xA"], a["PA"], dt, cfg.q)
+        a["gotL"] = np.zeros(n, bool)
+        a["gotA"] = np.zeros(n, bool)
+
+        # 2. LiDAR: segment, fit, associate
+        zL, RL = np.zeros((n, 2)), np.tile(np.eye(2), (n, 1, 1))
+        new_z, new_R = np.empty((0, 2)), np.empty((0, 2, 2))
+        fit_axes = np.full((n, 2), np.nan)
+        if scan is not None:
+            cl = cluster_scan(scan, self.land, cfg.cluster) if isinstance(scan, LidarScan) else scan
+            self._count("coast_points", cl.n_coast)
+            self._count("invalid_points", cl.n_invalid, "non-finite LiDAR returns dropped")
+            self._count("small_clusters", cl.n_small)
+            self._count("clusters", len(cl))
+            if len(cl):
+                m = lidar_measurements(cl, cfg.lidar)
+                self._count("fit_fallbacks", int((~m.used_fit).sum()))
+                rows, cols = gnn_assign(gated_costs(a["x"][:, :2], a["P"][:, :2, :2], m.z, m.R, self._gL)[0])
+                a["gotL"][rows] = True
+                zL[rows], RL[rows] = m.z[cols], m.R[cols]
+                good = m.used_fit[cols] & (m.fits.arc_coverage_rad[cols] >= 0.5 * np.pi)
+                fit_axes[rows[good]] = m.fits.semi_axes[cols[good]]
+                free = np.ones(len(m), bool)
+                free[cols] = False
+                new_z, new_R = m.z[free], m.R[free]
+
+        # 3. AIS: tied by MMSI, else GNN with untied tracks, else new tracks
+        zA, RA = np.zeros((n, 4)), np.tile(np.eye(4), (n, 1, 1))
+        am = ais_measurements(ais, t, cfg.ais)
+        self._count("ais_reports", len(ais))
+        self._count("ais_rejected", am.n_rejected, "malformed AIS reports rejected")
+        self._count("ais_stale", am.n_stale, "stale or future AIS reports dropped")
+        ais_new = np.zeros(len(am), bool)
+        if len(am):
+            # row of the track tied to each report's MMSI, -1 when none (MMSIs are unique)
+            tied = np.full(len(am), -1, np.int64)
+            if n:
+                order = np.argsort(a["mmsi"])
+                srt = a["mmsi"][order]  # untied tracks hold -1, never a valid MMSI
+                pos = np.minimum(np.searchsorted(srt, am.mmsi), n - 1)
+                tied = np.where(srt[pos] == am.mmsi, order[pos], -1).astype(np.int64)
+            tj = np.flatnonzero(tied >= 0)
+            if tj.size:
+                ti = tied[tj]
+                d = am.z[tj, :2] - a["x"][ti, :2]
+                S = a["P"][ti, :2, :2] + am.R[tj, :2, :2]
+                d2 = np.einsum("ni,nij,nj->n", d, np.linalg.inv(S), d)
+                ok = d2 <= self._gA_tied
+                self._count("ais_gated_out", int((~ok).sum()), "AIS reports far from their own track rejected")
+                a["gotA"][ti[ok]] = True
+                zA[ti[ok]], RA[ti[ok]] = am.z[tj[ok]], am.R[tj[ok]]
+                a["ais_rej"][ti[ok]] = 0
+                a["ais_rej"][ti[~ok]] += 1
+                reseed = ti[~ok][a["ais_rej"][ti[~ok]] >= cfg.ais_reseed_after]
+                if reseed.size:
+                    self._count("ais_reseeded", reseed.size)
+                    a["mmsi"][reseed] = -1
+                    ais_new[tj[~ok][np.isin(ti[~ok], reseed)]] = True
+            uj = np.flatnonzero(tied < 0)
+            if uj.size:
+                ui = np.flatnonzero(a["mmsi"] < 0)
+                cost = gated_costs(a["x"][ui, :2], a["P"][ui, :2, :2], am.z[uj, :2], am.R[uj, :2, :2], self._gL)[0]
+                rows, cols = gnn_assign(cost)
+                r, c = ui[rows], uj[cols]
+                a["gotA"][r] = True
+                a["mmsi"][r] = am.mmsi[c]
+                zA[r], RA[r] = am.z[c], am.R[c]
+                free = np.ones(uj.size, bool)
+                free[cols] = False
+                ais_new[uj[free]] = True
+
+        # 4. updater
+        gotL, gotA = a["gotL"], a["gotA"]
+        self._update_sensor_filters(zL, RL, zA, RA)
+        if cfg.fusion == "product":
+            a["x"], a["P"] = fuse_product(a["x"], a["P"], z_lidar=zL, R_lidar=RL, has_lidar=gotL,
+                                          z_ais=zA, R_ais=RA, has_ais=gotA)
+        else:
+            self._fuse_filters(t)
+        hit = gotL | gotA
+        mask_n = (1 << cfg.confirm_n) - 1
+        a["hist"] = ((a["hist"] << 1) | hit.astype(np.int64)) & mask_n
+        a["age"] += 1
+        a["n_ais"] += gotA
+        a["t_last"][hit] = t
+        fa = ~np.isnan(fit_axes[:, 0])
+        a["axes"][fa] = np.where(np.isnan(a["axes"][fa]), fit_axes[fa], 0.7 * a["axes"][fa] + 0.3 * fit_axes[fa])
+
+        # 5. confirmation, 6. deleter
+        hits_in_window = np.bitwise_count(a["hist"]).astype(np.int64)
+        newly = ~a["confirmed"] & ((hits_in_window >= cfg.confirm_m) | (a["n_ais"] >= 2))
+        a["confirmed"] |= newly
+        self._count("tracks_confirmed", int(newly.sum()))
+        self._delete(t, hits_in_window)
+        self._merge()
+
+        # 5. initiator (after deletion: new tracks are not judged on this tick)
+        if ais_new.any():
+            self._start_from_ais(t, am.mmsi[ais_new], am.z[ais_new], am.R[ais_new])
+        if len(new_z):
+            self._start_from_lidar(t, new_z, new_R)
+        self._last = self._snapshot(t)
+        return self._last
+
+    # ------------------------------------------------------------------ pieces
+    def _update_sensor_filters(self, zL: _F8, RL: _F8, zA: _F8, RA: _F8) -> None:
+        a, t = self._a, self._t
+        for got, has, xk, Pk, Gk, tk, z, R, H in (
+            (a["gotL"], a["hasL"], "xL", "PL", "GL", "tL", zL, RL, H_POSITION),
+            (a["gotA"], a["hasA"], "xA", "PA", "GA", "tA", zA, RA, H_FULL),
+        ):
+            upd = np.flatnonzero(got & has)
+            if upd.size:
+                u = kalman_update(a[xk][upd], a[Pk][upd], z[upd], R[upd], H)
+                a[xk][upd], a[Pk][upd], a[Gk][upd] = u.x, u.P, u.K @ H
+            init = np.flatnonzero(got & ~has)
+            if init.size:
+                xi, Pi = self._initial_state(z[init], R[init])
+                a[xk][init], a[Pk][init], a[Gk][init] = xi, Pi, np.eye(4)
+                has[init] = True
+            a[tk][got] = t
+
+    def _initial_state(self, z: _F8, R: _F8) -> tuple[_F8, _F8]:
+        """Track start from position-only (k, 2) or full (k, 4) measurements."""
+        k = z.shape[0]
+        v2 = self.config.init_velocity_std_m_s ** 2
+        x, P = np.zeros((k, 4)), np.zeros((k, 4, 4))
+        x[:, :2], P[:, :2, :2] = z[:, :2], R[:, :2, :2]
+        if z.shape[1] == 4:
+            x[:, 2:] = z[:, 2:]
+            P[:, 2:, 2:] = R[:, 2:, 2:]
+            P[:, :2, 2:], P[:, 2:, :2] = R[:, :2, 2:], R[:, 2:, :2]
+            unknown = R[:, 2, 2] > v2
+            x[unknown, 2:] = 0.0
+            P[unknown, :2, 2:] = P[unknown, 2:, :2] = 0.0
+            P[unknown, 2:, 2:] = v2 * np.eye(2)
+        else:
+            P[:, 2:, 2:] = v2 * np.eye(2)
+        return x, P
+
+    def _fuse_filters(self, t: float) -> None:
+        a, cfg = self._a, self.config
+        fL = a["hasL"] & (t - a["tL"] <= cfg.fusion_window_s)
+        fA = a["hasA"] & (t - a["tA"] <= cfg.fusion_window_s)
+        both = np.flatnonzero(fL & fA)
+        for only, xk, Pk in ((fL & ~fA, "xL", "PL"), (fA & ~fL, "xA", "PA")):
+            a["x"][only], a["P"][only] = a[xk][only], a[Pk][only]
+        if both.size:
+            if cfg.fusion == "gain_weighted":
+                x, P = fuse_gain_weighted(a["xA"][both], a["PA"][both], a["GA"][both],
+                                          a["xL"][both], a["PL"][both], a["GL"][both])
+            else:
+                x, P, _ = fuse_covariance_intersection(a["xA"][both], a["PA"][both], a["xL"][both], a["PL"][both])
+            a["x"][both], a["P"][both] = x, P
+
+    def _delete(self, t: float, hits: NDArray[np.int64]) -> None:
+        a, cfg = self._a, self.config
+        if a["x"].shape[0] == 0:
+            return
+        window = np.minimum(a["age"], cfg.confirm_n)
+        tentative_dead = ~a["confirmed"] & (a["mmsi"] < 0) & (window - hits > cfg.confirm_n - cfg.confirm_m)
+        coast = np.where(a["mmsi"] >= 0, cfg.max_coast_ais_s, cfg.max_coast_s)
+        stale = (t - a["t_last"]) > coast
+        pos = a["P"][:, :2, :2]
+        tr, det = pos[:, 0, 0] + pos[:, 1, 1], pos[:, 0, 0] * pos[:, 1, 1] - pos[:, 0, 1] ** 2
+        lmax = 0.5 * tr + np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
+        vague = np.sqrt(lmax) > cfg.max_position_std_m
+        bad = ~(np.isfinite(a["x"]).all(axis=1) & np.isfinite(a["P"]).all(axis=(1, 2)))
+        on_land = np.zeros_like(bad)
+        if self.land is not None:
+            p = np.where(bad[:, None], 0.0, a["x"][:, :2])
+            inland = self.land.contains(p)
+            if inland.any():
+                depth = self.land.distance_to_shore(p[inland])
+                on_land[np.flatnonzero(inland)] = depth > 3.0 * np.sqrt(lmax[inland]) + 10.0
+        dead = tentative_dead | stale | vague | bad | on_land
+        self._count("nan_guard", int(bad.sum()), "track with a non-finite estimate deleted (a bug)")
+        self._count("deleted_on_land", int((on_land & ~bad).sum()))
+        if dead.any():
+            self._count("tracks_deleted", int(dead.sum()))
+            self._keep(~dead)
+
+    def _merge(self) -> None:
+        """Merge duplicates: tracks coincident in position and velocity for ``merge_after`` ticks."""
+        a, cfg = self._a, self.config
+        if a["x"].shape[0] < 2:
+            self._pairs = {}
+            return
+        ii, jj = _coincident(a["x"], a["P"], a["mmsi"], self._gM)
+        pairs: dict[tuple[int, int], int] = {}
+        drop = np.zeros(a["x"].shape[0], bool)
+        for i, j in zip(ii.tolist(), jj.tolist()):
+            key = (int(a["ids"][i]), int(a["ids"][j]))
+            pairs[key] = self._pairs.get(key, 0) + 1
+            if pairs[key] >= cfg.merge_after and not (drop[i] or drop[j]):
+                # keep the MMSI-tied one, else the older (smaller id); hand over the LiDAR filter
+                keep, lose = (i, j) if (a["mmsi"][i] >= 0 or a["mmsi"][j] < 0) else (j, i)
+                if a["hasL"][lose] and (not a["hasL"][keep] or a["tL"][lose] > a["tL"][keep]):
+                    for name in ("xL", "PL", "GL", "hasL", "tL", "axes"):
+                        a[name][keep] = a[name][lose]
+                a["confirmed"][keep] |= a["confirmed"][lose]
+                drop[lose] = True
+        self._pairs = pairs
+        if drop.any():
+            self._count("tracks_merged", int(drop.sum()))
+            self._keep(~drop)
+
+    def _start_from_lidar(self, t: float, z: _F8, R: _F8) -> None:
+        a, cfg = self._a, self.config
+        if a["x"].shape[0]:
+            d = np.hypot(*(z[:, None, :] - a["x"][None, :, :2]).transpose(2, 0, 1))
+            d2 = gated_costs(a["x"][:, :2], a["P"][:, :2, :2], z, R, self._gL)[1]
+            sep = np.maximum(cfg.min_separation_m, np.nan_to_num(a["axes"][:, 0], nan=0.0) + 10.0)
+            near = ((d < sep[None, :]) | (d2 <= self._gL).T).any(axis=1)
+            self._count("init_suppressed", int(near.sum()))
+            z, R = z[~near], R[~near]
+        if not len(z):
+            return
+        # one new track per cluster; clusters closer than min_separation to each other: keep first
+        keep = np.ones(len(z), bool)
+        for i in range(1, len(z)):
+            keep[i] = not (np.hypot(*(z[:i][keep[:i]] - z[i]).T) < cfg.min_separation_m).any()
+        z, R = z[keep], R[keep]
+        x, P = self._initial_state(z, R)
+        k = len(z)
+        self._append({"ids": self._new_ids(k), "x": x, "P": P, "xL": x, "PL": P,
+                      "GL": np.tile(np.eye(4), (k, 1, 1)), "hasL": np.ones(k, bool), "tL": np.full(k, t),
+                      "t_last": np.full(k, t), "hist": np.ones(k, np.int64), "age": np.ones(k, np.int64),
+                      "gotL": np.ones(k, bool)})
+
+    def _start_from_ais(self, t: float, mmsi: NDArray[np.int64], z: _F8, R: _F8) -> None:
+        x, P = self._initial_state(z, R)
+        k = len(z)
+        self._append({"ids": self._new_ids(k), "mmsi": mmsi, "x": x, "P": P, "xA": x, "PA": P,
+                      "GA": np.tile(np.eye(4), (k, 1, 1)), "hasA": np.ones(k, bool), "tA": np.full(k, t),
+                      "t_last": np.full(k, t), "hist": np.ones(k, np.int64), "age": np.ones(k, np.int64),
+                      "n_ais": np.ones(k, np.int64), "gotA": np.ones(k, bool)})
+
+    def _snapshot(self, t: float) -> TrackSnapshot:
+        a = self._a
+        status = np.where(a["confirmed"], np.where(a["gotL"] | a["gotA"], "confirmed", "coasting"), "tentative")
+        nan4 = np.full_like(a["x"], np.nan)
+        return TrackSnapshot.build(
+            t_s=t, ids=a["ids"], mmsi=a["mmsi"], mean=a["x"], cov=a["P"], status=status,
+            semi_axes_m=a["axes"], last_update_s=a["t_last"],
+            updated_lidar=a["gotL"], updated_ais=a["gotA"],
+            lidar_only_mean=np.where(a["hasL"][:, None], a["xL"], nan4),
+            ais_only_mean=np.where(a["hasA"][:, None], a["xA"], nan4),
+            counters=dict(self._counts),
+        )
