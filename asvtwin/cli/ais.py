@@ -132,7 +132,7 @@ def _listen(args: argparse.Namespace) -> int:
     from asvtwin.sources.ais import TargetRegistry, open_ais_source
     from asvtwin.sources.history import SqliteHistory
 
-    console = Console()
+    console = _console()
     live_feed = args.source.startswith(("tcp://", "udp://"))
     try:
         source = open_ais_source(args.source, clock=time.time,
@@ -261,6 +261,15 @@ def _stats(args: argparse.Namespace) -> int:
     return 0
 
 
+def _console():
+    """A console; when output is not a terminal (a pipe, a log), wide enough for the
+    target table instead of the 80-column default."""
+    from rich.console import Console
+
+    c = Console()
+    return c if c.is_terminal else Console(width=140)
+
+
 def _history(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
@@ -296,5 +305,5 @@ def _history(args: argparse.Namespace) -> int:
         table.add_row(_iso(r.t_unix_s), str(r.mmsi), f"{r.lat_deg:.5f}", f"{r.lon_deg:.5f}",
                       "-" if r.sog_m_s is None else f"{float(m_s_to_knots(r.sog_m_s)):.1f}",
                       _deg(r.cog_rad), _deg(r.heading_rad), r.station or "-")
-    Console().print(table)
+    _console().print(table)
     return 0
