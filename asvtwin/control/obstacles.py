@@ -240,20 +240,26 @@ def stage_circles(obstacles: Obstacles | None, N: int) -> tuple[_F8, _F8, _F8]:
     Returns ``centres`` (N+1, m, 2) [m], ``radii`` (N+1, m) [m] and ``segments`` (k, 4).
     Moving obstacles must have N+1 predicted positions.
     """
-    cs, rs, segs = [], [], []
-    for o in _as_list(obstacles):
+    items = _as_list(obstacles)
+    circles = [o for o in items if not isinstance(o, CoastSegments)]
+    for o in circles:
+        if isinstance(o, MovingObstacles) and o.positions.shape[1] != N + 1:
+            raise StateError(f"moving obstacles need N+1 = {N + 1} predicted positions, "
+                             f"actually: {o.positions.shape[1]}")
+    m = sum(len(o) for o in circles)
+    centres = np.empty((N + 1, m, 2))
+    radii = np.empty((N + 1, m))
+    j = 0
+    for o in circles:  # filled in place: no per-kind temporaries
+        n = len(o)
         if isinstance(o, CircleObstacles):
-            cs.append(np.broadcast_to(o.centres[None], (N + 1, len(o), 2)))
-            rs.append(np.broadcast_to(o.radii[None], (N + 1, len(o))))
-        elif isinstance(o, MovingObstacles):
-            if o.positions.shape[1] != N + 1:
-                raise StateError(f"moving obstacles need N+1 = {N + 1} predicted positions, "
-                                 f"actually: {o.positions.shape[1]}")
-            cs.append(np.swapaxes(o.positions, 0, 1))
-            rs.append(o.effective_radii().T)
+            centres[:, j: j + n] = o.centres
+            radii[:, j: j + n] = o.radii
         else:
-            segs.append(o.segments)
-    centres = np.concatenate(cs, axis=1) if cs else np.zeros((N + 1, 0, 2))
-    radii = np.concatenate(rs, axis=1) if rs else np.zeros((N + 1, 0))
+            centres[:, j: j + n] = np.swapaxes(o.positions, 0, 1)
+            radii[:, j: j + n] = (o.effective_radii().T if o.covariances is not None
+                                  else o.radii)
+        j += n
+    segs = [o.segments for o in items if isinstance(o, CoastSegments)]
     segments = np.concatenate(segs, axis=0) if segs else np.zeros((0, 4))
     return centres, radii, segments

@@ -24,8 +24,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from asvtwin.control.backends import available_backends, make_backend
-from asvtwin.control.backends.ocp import DUMMY_DISTANCE_FACTOR, OcpSpec, discrete_dynamics
+from asvtwin.control.backends.ocp import DUMMY_DISTANCE_FACTOR, OcpSpec
 from asvtwin.control.fallback import BackupPlan, Fallback, backup_input
+from asvtwin.control.kernels import certify, rollout, warm_up
 from asvtwin.control.obstacles import CoastSegments, Obstacles, stage_circles
 from asvtwin.control.terminal_set import TerminalSet, compute_terminal_set
 from asvtwin.errors import ConfigError, StateError
@@ -268,8 +269,24 @@ class SafetyFilter:
         opts: dict[str, object] = ({"rti_steps": cfg.rti_steps} if name == "acados"
                                    else {"max_iter": cfg.max_iter})
         self.backend = make_backend(name, self.spec, **opts)
-        F = discrete_dynamics(params, cfg.dt_s, self.spec.rk4_substeps)
-        self._rollout = F.mapaccum("rollout", cfg.N)
+        # constants of every call, computed once
+        N, s = cfg.N, self.spec
+        self._coef = np.ascontiguousarray(params.packed())  # the planning model's
+        self._zero3 = np.zeros(3)
+        self._clear = np.full(N + 1, self.d_safe_m)
+        self._clear[N] += self.d_f_m  # eq. (f)
+        self._P_f = np.ascontiguousarray(self.terminal_set.P_f)
+        far = DUMMY_DISTANCE_FACTOR * params.length
+        self._P = np.zeros((N + 1, s.n_p))  # stage parameters, rewritten every call
+        self._P[:, 3] = self._clear
+        self._circ = self._P[:, 4: 4 + 3 * s.n_circles].reshape(N + 1, s.n_circles, 3)
+        if not np.shares_memory(self._circ, self._P):  # pragma: no cover - numpy layout
+            raise AssertionError("the circle slots must be a view of the stage parameters")
+        self._dummy_circle = np.stack([np.full(s.n_circles, far),
+                                       far * (1 + 0.01 * np.arange(s.n_circles))], axis=1)
+        self._dummy_segment = np.array([-far, -far, -far, -far + 1.0])
+        self._vel_tol = 0.01 * self.nu_max
+        warm_up()
         self._plan: BackupPlan | None = None
         self._last: tuple[float, _F8, _F8] | None = None  # (t, x_pred, u_pred)
         self._t: float | None = None
@@ -277,19 +294,34 @@ class SafetyFilter:
 
     # --------------------------------------------------------------------- helpers
     def rollout(self, x0: ArrayLike, u: ArrayLike, d_hat: ArrayLike | None = None) -> _F8:
-        """States (N+1, 6) of the plan ``u`` (N, 3) from ``x0`` on the filter's model."""
+        """States (N+1, 6) of the plan ``u`` (N, 3) from ``x0`` on the filter's model.
+
+        The model is the solver's (eq. (a), RK4 per stage, smoothed |·|), evaluated by
+        the compiled :func:`asvtwin.control.kernels.rollout`.
+        """
         N = self.config.N
-        D = np.zeros((3, N)) if d_hat is None else np.tile(np.asarray(d_hat)[:, None], N)
-        X = np.asarray(self._rollout(np.asarray(x0, float), np.asarray(u, float).T, D))
-        return np.vstack([np.asarray(x0, float)[None], X.T])
+        x0 = np.ascontiguousarray(x0, dtype=float)
+        U = np.ascontiguousarray(u, dtype=float)
+        if x0.shape != (6,) or U.shape != (N, 3):
+            raise StateError(f"rollout needs x0 of shape (6,) and u of shape ({N}, 3), "
+                             f"actually: {x0.shape} and {U.shape}")
+        d = self._zero3 if d_hat is None else np.ascontiguousarray(d_hat, dtype=float)
+        if d.shape != (3,):
+            raise StateError(f"d_hat must have shape (3,), actually: {d.shape}")
+        X = np.empty((N + 1, 6))
+        rollout(x0, U, d, self._coef, self.config.dt_s, self.spec.rk4_substeps, X)
+        return X
 
     def reset(self) -> None:
-        """Forget the last plan (new episode)."""
+        """Forget the last plan and the solver's iterate (new episode)."""
         self._plan, self._last, self._t = None, None, None
+        self.backend.reset()
 
     def _stage_params(self, x: _F8, d_hat: _F8, centres: _F8, radii: _F8, segs: _F8,
                       ) -> tuple[_F8, NDArray[np.intp], NDArray[np.intp]]:
-        s, N = self.spec, self.config.N
+        """Stage parameters (N+1, n_p) (an internal buffer: backends copy it) and the
+        indices of the circles and segments that got a slot."""
+        s = self.spec
         m, k = centres.shape[1], segs.shape[0]
         ci = np.arange(m)
         if m > s.n_circles:  # keep the circles that come nearest over the horizon
@@ -304,38 +336,35 @@ class SafetyFilter:
                         "%d / %d (raise PsfConfig.n_circles / n_segments)", m, k,
                         s.n_circles, s.n_segments)
             self._dropped_logged = True
-        P = np.zeros((N + 1, s.n_p))
+        P = self._P  # column 3 (clearance, eq. (e)/(f)) is constant
         P[:, 0:3] = d_hat
-        P[:, 3] = self.d_safe_m
-        P[N, 3] = self.d_safe_m + self.d_f_m  # eq. (f)
-        far = DUMMY_DISTANCE_FACTOR * self.params.length
-        circ = np.zeros((N + 1, s.n_circles, 3))
-        circ[:, :, 0] = x[0] + far
-        circ[:, :, 1] = x[1] + far * (1 + 0.01 * np.arange(s.n_circles))
-        circ[:, :, 2] = self.params.length
-        circ[:, : len(ci), 0:2] = centres[:, ci]
-        circ[:, : len(ci), 2] = radii[:, ci]
-        P[:, 4: 4 + 3 * s.n_circles] = circ.reshape(N + 1, -1)
+        nc, used = s.n_circles, len(ci)
+        circ = self._circ  # a view of P's circle slots
+        if used < nc:  # far-away dummies in the unused slots
+            circ[:, used:, 0:2] = self._dummy_circle[used:] + x[:2]
+            circ[:, used:, 2] = self.params.length
+        if used:
+            sel = slice(None) if m <= nc else ci
+            circ[:, :used, 0:2] = centres[:, sel]
+            circ[:, :used, 2] = radii[:, sel]
         if s.n_segments:
-            sg = np.tile(np.array([x[0] - far, x[1] - far, x[0] - far, x[1] - far + 1.0]),
-                         (s.n_segments, 1))
+            sg = np.empty((s.n_segments, 4))
+            sg[len(si):] = self._dummy_segment + x[[0, 1, 0, 1]]
             sg[: len(si)] = segs[si]
-            P[:, 4 + 3 * s.n_circles:] = sg.ravel()
+            P[:, 4 + 3 * nc:] = sg.ravel()
         return P, ci, si
 
-    def _margins(self, X: _F8, centres: _F8, radii: _F8, segs: _F8) -> tuple[_F8, _F8]:
-        """Per-stage obstacle margins (N+1, m + k) [m] against the required clearance."""
-        N = self.config.N
-        clear = np.full(N + 1, self.d_safe_m)
-        clear[N] += self.d_f_m
-        parts = []
-        if centres.shape[1]:
-            parts.append(np.linalg.norm(X[:, None, :2] - centres, axis=2) - radii)
-        if segs.shape[0]:
-            parts.append(CoastSegments(segs).distances(X[:, :2]))
-        if not parts:
-            return np.full((N + 1, 0), np.inf), clear
-        return np.concatenate(parts, axis=1) - clear[:, None], clear
+    def _certify(self, X: _F8, centres: _F8, radii: _F8, segs: _F8,
+                 ) -> tuple[_F8, float, float, bool]:
+        """Per-stage obstacle margins (N+1, m + k) [m] against the required clearance
+        (d_safe; d_safe + d_f at N, eq. (e)/(f)), their minimum over stages 1..N (+inf
+        without obstacles, NaN when a margin is NaN), the terminal margin
+        1 − ν_Nᵀ P_f ν_N (eq. (g)) and whether every state is finite."""
+        out = np.empty((X.shape[0], centres.shape[1] + segs.shape[0]))
+        low, term, finite = certify(X, np.ascontiguousarray(centres),
+                                    np.ascontiguousarray(radii), np.ascontiguousarray(segs),
+                                    self._clear, self._P_f, out)
+        return out, float(low), float(term), bool(finite)
 
     # ------------------------------------------------------------------------ filter
     def filter(self, x: ArrayLike, u_L: ArrayLike, obstacles: Obstacles | None = None,
@@ -395,11 +424,10 @@ class SafetyFilter:
             except RuntimeError as exc:  # a solver crash is a failed solve, not a crash
                 U, status, ok = ug, f"solver error: {exc}", False
             X = self.rollout(x, U, d)  # certify on the model, not on the solver's claim
-            margins, _ = self._margins(X, centres, radii, segs)
-            term = float(1.0 - X[N, 3:] @ self.terminal_set.P_f @ X[N, 3:])
-            obst_ok = margins.shape[1] == 0 or margins[1:].min() >= -self.certify_tol_m
-            certified = ok and obst_ok and term >= -0.05 and bool(np.all(np.isfinite(X)))
-            if ok and np.all(np.isfinite(raw.x)):
+            margins, low, term, finite = self._certify(X, centres, radii, segs)
+            obst_ok = low >= -self.certify_tol_m  # False for NaN, True without obstacles
+            certified = ok and obst_ok and term >= -0.05 and finite
+            if ok and np.isfinite(raw.x).all():
                 self._last = (t_s, raw.x, U)  # the next warm start, certified or not
                 xg, ug = raw.x, U
             if certified:
@@ -414,23 +442,30 @@ class SafetyFilter:
             u0, fb = backup_input(self.params, x, t_s, self._plan, self.terminal_set.k_r)
             if fb is Fallback.PLAN_TAIL and self._plan is not None:
                 _, ut = self._plan.tail(t_s)
-                U = np.vstack([ut, np.tile(u0 * 0, (N - len(ut), 1))])
+                U = np.zeros((N, 3))  # the tail, then no input
+                U[: len(ut)] = ut
             else:
-                U = np.tile(u0, (N, 1))
+                U = np.empty((N, 3))
+                U[:] = u0
             X = self.rollout(x, U, d)
-            margins, _ = self._margins(X, centres, radii, segs)
-            term = float(1.0 - X[N, 3:] @ self.terminal_set.P_f @ X[N, 3:])
+            margins, _, term, _ = self._certify(X, centres, radii, segs)
         return self._result(x, u_L, u0, X, U, margins, term, ci, si, centres, radii,
                             certified, status, iters, t_solve, fb)
 
     def _guess(self, x: _F8, u_L: _F8, d: _F8, t_s: float) -> tuple[_F8, _F8]:
+        """Primal guess: the last plan shifted to ``t_s`` (its last stage repeated), or a
+        coasting plan that starts with u_L."""
         N = self.config.N
         if self._last is not None:
             t0, X, U = self._last
             i = round((t_s - t0) / self.config.dt_s)
             if 0 <= i < N:
-                Ug = np.vstack([U[i:], np.tile(U[-1], (i, 1))])
-                Xg = np.vstack([X[i:], np.tile(X[-1], (i, 1))])
+                Ug = np.empty((N, 3))
+                Ug[: N - i] = U[i:]
+                Ug[N - i:] = U[-1]
+                Xg = np.empty((N + 1, 6))
+                Xg[: N + 1 - i] = X[i:]
+                Xg[N + 1 - i:] = X[-1]
                 Xg[0] = x
                 return Xg, Ug
         Ug = np.zeros((N, 3))
@@ -439,26 +474,35 @@ class SafetyFilter:
         return self.rollout(x, Ug, d), Ug
 
     def _result(self, x: _F8, u_L: _F8, u0: _F8, X: _F8, U: _F8, margins: _F8, term: float,
-                ci: NDArray[np.intp], si: NDArray[np.intp], centres: _F8, radii: _F8, certified: bool, status: str,
-                iters: int, t_solve: float, fb: Fallback) -> FilterResult:
+                ci: NDArray[np.intp], si: NDArray[np.intp], centres: _F8, radii: _F8,
+                certified: bool, status: str, iters: int, t_solve: float, fb: Fallback,
+                ) -> FilterResult:
         N = self.config.N
         m = centres.shape[1]
         tol = 0.05 * self.params.length
         active: list[ActiveConstraint] = []
+        hit: set[int] = set()
         if margins.shape[1]:
-            for k, j in zip(*np.nonzero(margins[1:] <= tol)):
-                kind: Literal["circle", "segment"] = "circle" if j < m else "segment"
-                active.append(ActiveConstraint(kind, int(j if j < m else j - m), int(k) + 1,
-                                               float(margins[k + 1, j])))
-        vel = self.nu_max[None, :] - np.abs(X[:, 3:])
-        for k, j in zip(*np.nonzero(vel[1:] <= 0.01 * self.nu_max)):
-            active.append(ActiveConstraint("velocity", int(j), int(k) + 1, float(vel[k + 1, j])))
+            ks, js = np.nonzero(margins[1:] <= tol)
+            if ks.size:
+                vals = margins[1:][ks, js].tolist()
+                for k, j, v in zip(ks.tolist(), js.tolist(), vals):
+                    if j < m:
+                        active.append(ActiveConstraint("circle", j, k + 1, v))
+                        hit.add(j)
+                    else:
+                        active.append(ActiveConstraint("segment", j - m, k + 1, v))
+        vel = self.nu_max - np.abs(X[:, 3:])
+        ks, js = np.nonzero(vel[1:] <= self._vel_tol)
+        if ks.size:
+            vals = vel[1:][ks, js].tolist()
+            active.extend(ActiveConstraint("velocity", j, k + 1, v)
+                          for k, j, v in zip(ks.tolist(), js.tolist(), vals))
         if term <= 0.02:
             active.append(ActiveConstraint("terminal_set", 0, N, term))
         obst = margins.min(axis=1) if margins.shape[1] else np.full(N + 1, np.inf)
-        hit = sorted({a.index for a in active if a.kind == "circle"})
         critical = tuple((float(centres[0, j, 0]), float(centres[0, j, 1]),
-                          float(radii[0, j] + self.d_safe_m)) for j in hit)
+                          float(radii[0, j] + self.d_safe_m)) for j in sorted(hit))
         return FilterResult(
             u0=u0, delta_u=u_L - u0, x_pred=X, u_pred=U, obstacle_margin_m=obst,
             velocity_margin=vel, terminal_margin=term, active=tuple(active),

@@ -168,3 +168,33 @@ def test_disturbance_estimate_enters_the_prediction(psf):
     # 0.5 N of following current/wind: the coasting plan travels further north
     assert pushed.x_pred[-1, 0] > calm.x_pred[-1, 0] + 1.0
     np.testing.assert_allclose(pushed.x_pred, psf.rollout(x, pushed.u_pred, [0.5, 0, 0]))
+
+
+def test_failed_acados_qp_does_not_poison_later_solves(params):
+    """A failed QP leaves bad multipliers in acados' iterate; the backend must reset them,
+    or every later solve of every filter sharing it fails (seen in closed loops)."""
+    if "acados" not in available_backends():
+        pytest.skip("the acados extra is not installed")
+    psf = SafetyFilter(params, config=PsfConfig(backend="acados"))
+    b = psf.backend
+    x = np.array([0.0, 0.0, 0.0, 0.4, 0.0, 0.0])
+    obs = CircleObstacles([[12.0, 0.5]], [2.0])
+    psf.reset()
+    assert psf.filter(x, FULL_AHEAD, obs).success
+    N = psf.config.N
+    absurd = np.zeros((N + 1, b.spec.n_p))
+    absurd[:, :3] = 1e6  # a disturbance no plan can handle: the QP fails
+    raw = b.solve(x, FULL_AHEAD, absurd, np.tile(x, (N + 1, 1)), np.tile(FULL_AHEAD, (N, 1)))
+    assert not raw.success
+    # after the backend's own reset the QPs solve again
+    after = [psf.filter(x, FULL_AHEAD, obs) for _ in range(5)]
+    assert all("QP status" not in r.status for r in after), [r.status for r in after]
+    # and the reset is what makes the difference: without it every later QP fails
+    b._solver_reset, b._solver.reset = b._solver.reset, lambda: None
+    try:
+        b.solve(x, FULL_AHEAD, absurd, np.tile(x, (N + 1, 1)), np.tile(FULL_AHEAD, (N, 1)))
+        stuck = [psf.filter(x, FULL_AHEAD, obs) for _ in range(5)]
+        assert all("QP status 4" in r.status for r in stuck), [r.status for r in stuck]
+    finally:
+        b._solver.reset = b._solver_reset
+        psf.reset()

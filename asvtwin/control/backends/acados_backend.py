@@ -18,7 +18,10 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import fcntl
+import hashlib
 import io
+import json
 import logging
 import os
 import time
@@ -94,7 +97,7 @@ class AcadosBackend:
     """
 
     def __init__(self, spec: OcpSpec, *, rti_steps: int = 1, step_tol: float = 1e-3) -> None:
-        _setup_environment()
+        acados = _setup_environment()
         from acados.acados_template import (  # type: ignore[import-not-found]
             AcadosModel,
             AcadosOcp,
@@ -162,35 +165,53 @@ class AcadosBackend:
 
         opts = ocp.solver_options
         opts.tf = s.N * s.dt_s
-        opts.integrator_type = "ERK"
-        opts.sim_method_num_stages = 4  # classic RK4, as the CasADi backend
-        opts.sim_method_num_steps = s.rk4_substeps
-        opts.nlp_solver_type = "SQP_RTI"
-        opts.hessian_approx = "GAUSS_NEWTON"
-        opts.qp_solver = "PARTIAL_CONDENSING_HPIPM"
-        opts.qp_solver_cond_N = max(1, s.N // 5)
-        opts.qp_solver_iter_max = 100
-        opts.qp_solver_warm_start = 1
-        opts.levenberg_marquardt = 1e-4
-        opts.print_level = 0
+        solver_options = {
+            "integrator_type": "ERK",
+            "sim_method_num_stages": 4,  # classic RK4, as the CasADi backend
+            "sim_method_num_steps": s.rk4_substeps,
+            "nlp_solver_type": "SQP_RTI",
+            "hessian_approx": "GAUSS_NEWTON",
+            "qp_solver": "PARTIAL_CONDENSING_HPIPM",
+            "qp_solver_cond_N": max(1, s.N // 5),
+            "qp_solver_iter_max": 100,
+            "qp_solver_warm_start": 1,
+            "levenberg_marquardt": 1e-4,
+            "print_level": 0,
+        }
+        for name, value in solver_options.items():
+            setattr(opts, name, value)
 
-        root = cache_dir() / f"acados_{s.key()}"
+        # the generated code depends on the problem, the solver options and the acados
+        # version: all three name its cache folder
+        opt_key = hashlib.sha256(json.dumps(
+            [solver_options, getattr(acados, "__version__", "")], sort_keys=True
+        ).encode()).hexdigest()[:8]
+        root = cache_dir() / f"acados_{s.key()}_{opt_key}"
         root.mkdir(parents=True, exist_ok=True)
         ocp.code_export_directory = str(root / "c_generated_code")
         json_file = str(root / "acados_ocp.json")
-        lib = root / "c_generated_code" / f"libacados_ocp_solver_{model.name}.so"
-        fresh = not lib.exists()
+        done = root / "BUILD_COMPLETE"
         cwd = os.getcwd()
         t0 = time.perf_counter()
-        try:
-            os.chdir(root)  # acados writes helper files into the working directory
-            with contextlib.redirect_stdout(io.StringIO()):
-                self._solver = AcadosOcpSolver(ocp, json_file=json_file,
-                                               generate=fresh, build=fresh, verbose=False)
-        except Exception as exc:
-            raise SolverError(f"building the acados solver in {root} failed: {exc}") from exc
-        finally:
-            os.chdir(cwd)
+        # one builder at a time per folder (parallel test workers, several twins): the
+        # others wait on the lock, then load what it built; a build that died half-way
+        # left no BUILD_COMPLETE marker and is redone
+        with open(root / ".lock", "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            fresh = not done.exists()
+            try:
+                os.chdir(root)  # acados writes helper files into the working directory
+                with contextlib.redirect_stdout(io.StringIO()):
+                    self._solver = AcadosOcpSolver(ocp, json_file=json_file,
+                                                   generate=fresh, build=fresh,
+                                                   verbose=False)
+            except Exception as exc:
+                raise SolverError(
+                    f"building the acados solver in {root} failed: {exc}") from exc
+            finally:
+                os.chdir(cwd)
+            if fresh:
+                done.write_text(f"built in {time.perf_counter() - t0:.1f} s\n")
         if fresh:
             log.info("acados solver generated and compiled in %.1f s (%s)",
                      time.perf_counter() - t0, root)
@@ -247,9 +268,17 @@ class AcadosBackend:
         X, U = io.read()
         ok = status == 0 and qp_status == 0 and bool(np.all(np.isfinite(U)))
         word = "ok" if ok else f"acados status {status}, QP status {qp_status}"
+        if not ok:
+            # a failed QP leaves poisoned multipliers in the solver's iterate: every later
+            # RTI step (of every filter sharing this backend) would fail too
+            self._solver.reset()
         # slacks are not read back: the filter certifies the plan by simulation instead
         return RawSolution(x=X, u=U, max_slack=float("nan"), success=ok, status=word,
                            iterations=iters, solve_time_s=dt)
+
+    def reset(self) -> None:
+        """Zero the solver's iterate and multipliers (a new episode, or after a failure)."""
+        self._solver.reset()
 
     def _qp_status(self) -> int:
         """Status of the last QP (0 ok); RTI reports success even when the QP did not."""

@@ -56,3 +56,7 @@ class Backend(Protocol):
         """Solve from state ``x0`` (6,) for learner input ``u_L`` (3,), stage parameters
         (N+1, n_p) and a primal guess (``x_guess`` (N+1, 6), ``u_guess`` (N, 3))."""
         ...
+
+    def reset(self) -> None:
+        """Forget any solver state carried between calls (iterates, multipliers)."""
+        ...

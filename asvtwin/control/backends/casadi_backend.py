@@ -208,6 +208,9 @@ class CasadiBackend:
         return lib
 
     # ------------------------------------------------------------------------ solving
+    def reset(self) -> None:
+        """Nothing to forget: every solve starts from the primal guess it is given."""
+
     def solve(self, x0: NDArray[np.float64], u_L: NDArray[np.float64],
               stage_params: NDArray[np.float64], x_guess: NDArray[np.float64],
               u_guess: NDArray[np.float64]) -> RawSolution:
