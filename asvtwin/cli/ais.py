@@ -124,7 +124,7 @@ def _listen(args: argparse.Namespace) -> int:
     import asyncio
     import time
 
-    from rich.console import Console, Group
+    from rich.console import Group
     from rich.live import Live
     from rich.text import Text
 

@@ -60,7 +60,7 @@ def write_csv(path: Path, result) -> None:
                         f"{tau[2]:.6g}"])
 
 
-def plot_manoeuvre(path: Path, result, scene=None) -> None:  # noqa: ANN001
+def plot_manoeuvre(path: Path, result, scene=None) -> None:
     """Track (north up) and time series of a manoeuvre as a PNG; with a scene, the
     coast around the track is drawn too."""
     import matplotlib
@@ -106,7 +106,7 @@ def plot_manoeuvre(path: Path, result, scene=None) -> None:  # noqa: ANN001
     ax.set_title(f"{result.name} — {result.vessel}{where}")
     text = "\n".join(f"{k} = {v:.3g}" for k, v in result.metrics.items())
     ax.text(0.02, 0.02, text, transform=ax.transAxes, fontsize=8, va="bottom",
-            bbox=dict(facecolor="white", alpha=0.8, edgecolor="0.7"))
+            bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "0.7"})
     t = result.t_s
     a1 = fig.add_subplot(gs[0, 1])
     a1.plot(t, np.degrees(x[:, 2]), color="tab:purple")

@@ -171,9 +171,8 @@ def step_batch(x, tau_act, tau_cmd, d, P, A, F, dt, x_out, tau_out):  # pragma: 
     bad = -1
     for i in range(n):
         for j in range(3):
-            if not (math.isfinite(tau_cmd[i, j]) and math.isfinite(d[i, j])):
-                if bad < 0:
-                    bad = i
+            if bad < 0 and not (math.isfinite(tau_cmd[i, j]) and math.isfinite(d[i, j])):
+                bad = i
         _actuator_one(tau_act, tau_cmd, i, A[0] if sharedA else A[i], dt, tau_out)
         f = F[0] if sharedF else F[i]
         ok = _rk4_one(x, i, f[0, 0] * tau_out[i, 0] + f[1, 0] + d[i, 0],

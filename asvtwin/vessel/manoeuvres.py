@@ -232,7 +232,7 @@ def thrust_step(params: VesselParams, *, surge_fraction: float = 1.0,
     # linearised time constant M11 / d11'(U) sets a sensible duration
     slope = -params.X_u - 2 * params.X_uu * U - 3 * params.X_uuu * U * U
     T = duration_s or max(10.0 * M11 / slope, 20 * dt)
-    n = int(math.ceil(T / dt))
+    n = math.ceil(T / dt)
     t, xs, tau = _run(params, np.zeros(6), dt, n, lambda _t, _x: (F, 0.0, 0.0))
     u = xs[:, 3]
     m = {
