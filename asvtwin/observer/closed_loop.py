@@ -100,7 +100,8 @@ def current_scenario(rng: np.random.Generator, kind: str, *,
         coast = np.array([np.concatenate([c - 40 * along, c + 40 * along])])
     elif kind == "rock_ahead":
         r = rng.uniform(1.5, 3.0)
-        circles = CircleObstacles([[dist + r, rng.uniform(-0.5, 0.5) * r]], [r])
+        circles = CircleObstacles(np.array([[dist + r, rng.uniform(-0.5, 0.5) * r]]),
+                                  np.array([r]))
     else:
         raise ParameterError(f"kind must be one of {CURRENT_KINDS}, actually: {kind!r}")
     beta = rng.uniform(-math.radians(15.0), math.radians(15.0))

@@ -396,7 +396,7 @@ class SqliteHistory:
             mmsi=np.array(c["mmsi"], np.int64), msg_type=np.array(c["msg_type"], np.int64),
             north_m=np.asarray(north, np.float64), east_m=np.asarray(east, np.float64),
             nav_status=np.array(c["nav_status"], np.int64),
-            station=tuple(c["station_name"].tolist()), **f8)
+            station=tuple(c["station_name"].tolist()), **f8)  # type: ignore[arg-type]
 
     def query_static(self, *, mmsi: int | None = None, since_unix_s: float | None = None,
                      until_unix_s: float | None = None) -> list[AisStatic]:
