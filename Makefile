@@ -6,7 +6,7 @@ BIN := $(VENV)/bin
 # pytest workers: 2 on CI's 2 cores
 WORKERS ?= 2
 
-.PHONY: run test bench clean
+.PHONY: run test bench lint clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -29,6 +29,11 @@ test: $(VENV)/.installed-test
 
 bench: $(VENV)/.installed-test
 	@for b in benchmarks/*.py; do echo "== $$b"; $(BIN)/python $$b; done
+
+lint: $(VENV)/.installed-test
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/ruff check asvtwin tests benchmarks tools
+	$(BIN)/mypy asvtwin
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

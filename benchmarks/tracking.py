@@ -5,8 +5,13 @@
   also the MLR fit and the per-cluster cost of the batched fit over 200 clusters.
 - ``lidar_scan_ms``: one 360-ray scan against 50 targets and the Trondheim Fjord coast
   (default scene), own ship near the shore.
-- ``tracker_tick_ms``: one :meth:`asvtwin.tracking.Tracker.step` with 200 targets, a
-  3600-ray scan (already cast) and 200 AIS reports, after the tracks are established.
+- ``tracker_tick_ms``: one whole :meth:`asvtwin.tracking.Tracker.step` (scan clustering,
+  ellipse fits, measurement models, association, AIS, fusion, track management, snapshot)
+  with 200 targets, a 3600-ray scan (already cast) and 200 AIS reports, after the tracks
+  are established. The AIS reports come as columns (:class:`AisMeasurementBatch`,
+  ``"ais_input": "arrays"``); ``tracker_tick_list_ms`` is the same tick with the reports
+  as a list of :class:`AisMeasurement` objects (a second tracker fed the same ticks,
+  checked to give the same tracks).
 
 Warm-up (numba compilation, first calls) is excluded; medians and p95 of repeats.
 Run: ``python benchmarks/tracking.py``.
@@ -21,7 +26,14 @@ import numpy as np
 
 from asvtwin.geo import default_scene
 from asvtwin.sensors import Lidar, LidarConfig
-from asvtwin.tracking import AisMeasurement, Tracker, fit_ellipse, fit_ellipses
+from asvtwin.tracking import (
+    AisMeasurement,
+    AisMeasurementBatch,
+    Tracker,
+    TrackSnapshot,
+    fit_ellipse,
+    fit_ellipses,
+)
 
 
 def _stats(samples: list[float], scale: float) -> tuple[float, float]:
@@ -90,34 +102,47 @@ def bench_lidar(rng: np.random.Generator) -> dict[str, float]:
             "lidar_target_returns": int((scan.hit_id >= 0).sum())}
 
 
-def bench_tracker(rng: np.random.Generator, n: int = 200, warm: int = 12, timed: int = 30) -> dict[str, float]:
+def bench_tracker(rng: np.random.Generator, n: int = 200, warm: int = 12, timed: int = 30) -> dict[str, float | str]:
     own = np.zeros(6)
     tg = _targets(rng, n, own[:2], 80.0, 950.0, None)
     L = rng.uniform(15.0, 60.0, n)
     vel = tg[:, 3:4] * np.column_stack([np.cos(tg[:, 2]), np.sin(tg[:, 2])])
     lidar = Lidar(LidarConfig(n_rays=3600, max_range_m=1000.0))
-    tracker = Tracker()
-    ticks = []
+    mmsi = 200000000 + np.arange(n, dtype=np.int64)
+    # two trackers fed the same ticks: AIS as columns (the headline) and as report objects
+    tracker, tracker_list = Tracker(), Tracker()
+    ticks: list[float] = []
+    ticks_list: list[float] = []
+    snaps: dict[int, TrackSnapshot] = {}
     for k in range(warm + timed):
         t = float(k)
         pos = tg[:, :2] + vel * t
         states = np.column_stack([pos, tg[:, 2], tg[:, 3], np.zeros((n, 2))])
         scan = lidar.scan(own, states, L, L / 4, None, rng, t_s=t)
         noisy = pos + rng.normal(0.0, 5.0, pos.shape)
-        ais = [AisMeasurement(200000000 + i, t, float(noisy[i, 0]), float(noisy[i, 1]), float(tg[i, 3]), float(tg[i, 2]))
+        ais = [AisMeasurement(int(mmsi[i]), t, float(noisy[i, 0]), float(noisy[i, 1]), float(tg[i, 3]), float(tg[i, 2]))
                for i in range(n)]
-        t0 = time.perf_counter()
-        snap = tracker.step(t, scan, ais)
-        ticks.append(time.perf_counter() - t0)
+        batch = AisMeasurementBatch(mmsi, np.full(n, t), noisy[:, 0], noisy[:, 1], tg[:, 3], tg[:, 2])
+        runs: list[tuple[Tracker, list[float], AisMeasurementBatch | list[AisMeasurement]]] = [
+            (tracker, ticks, batch), (tracker_list, ticks_list, ais)]
+        for trk, out, reports in runs if k % 2 else runs[::-1]:  # alternate who meets the scan first
+            t0 = time.perf_counter()
+            snaps[id(trk)] = trk.step(t, scan, reports)  # the whole tick: clustering ... snapshot
+            out.append(time.perf_counter() - t0)
+    snap, snap_list = snaps[id(tracker)], snaps[id(tracker_list)]
+    if not (np.array_equal(snap.mean, snap_list.mean) and snap.mmsi == snap_list.mmsi):
+        raise RuntimeError("AIS as arrays and as objects gave different tracks")
     m, p = _stats(ticks[warm:], 1e3)
-    return {"tracker_tick_ms": m, "tracker_tick_ms_p95": p, "tracker_targets": n,
+    ml, pl = _stats(ticks_list[warm:], 1e3)
+    return {"tracker_tick_ms": m, "tracker_tick_ms_p95": p, "ais_input": "arrays",
+            "tracker_tick_list_ms": ml, "tracker_tick_list_ms_p95": pl, "tracker_targets": n,
             "tracker_confirmed_tracks": int(snap.is_confirmed.sum()),
             "tracker_lidar_updated_tracks": int(snap.updated_lidar.sum())}
 
 
 def main() -> None:
     rng = np.random.default_rng(2024)
-    out: dict[str, float] = {}
+    out: dict[str, float | str] = {}
     out.update(bench_ellipse(rng))
     out.update(bench_lidar(rng))
     out.update(bench_tracker(rng))

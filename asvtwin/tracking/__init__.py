@@ -39,6 +39,7 @@ from asvtwin.tracking.kalman import (
 )
 from asvtwin.tracking.measurement import (
     AisMeasurement,
+    AisMeasurementBatch,
     AisMeasurements,
     AisModel,
     LidarMeasurements,
@@ -84,6 +85,7 @@ __all__ = [
     "TRACK_STATUS",
     # measurements
     "AisMeasurement",
+    "AisMeasurementBatch",
     "AisMeasurements",
     "AisModel",
     # clustering

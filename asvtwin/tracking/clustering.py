@@ -176,17 +176,65 @@ def _link_ordered(pts, r, ang, link_m, lam, noise, window, max_link):  # type: i
     return labels
 
 
+@njit(cache=True)
+def _group_kernel(pts, labels, min_points):  # type: ignore[no-untyped-def]
+    """Points grouped by label (labels in [0, m)), groups in ascending label order, points
+    in input order within a group (what ``np.unique`` + a stable argsort give), groups
+    smaller than ``min_points`` dropped: (points, offsets, n_dropped)."""
+    n = pts.shape[0]
+    counts = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        counts[labels[i]] += 1
+    start = np.full(n + 1, -1, np.int64)
+    n_groups, total = 0, 0
+    for lab in range(n):
+        if counts[lab] >= min_points and counts[lab] > 0:
+            start[lab] = total
+            total += counts[lab]
+            n_groups += 1
+    out = np.empty((total, 2))
+    off = np.empty(n_groups + 1, np.int64)
+    off[0] = 0
+    g = 0
+    for lab in range(n):
+        if start[lab] >= 0:
+            off[g + 1] = start[lab] + counts[lab]
+            g += 1
+    for i in range(n):
+        k = start[labels[i]]
+        if k >= 0:
+            out[k, 0] = pts[i, 0]
+            out[k, 1] = pts[i, 1]
+            start[labels[i]] = k + 1
+    return out, off, n - total
+
+
 def _group(pts: _F8, labels: NDArray[np.int64], min_points: int) -> tuple[_F8, NDArray[np.int64], int]:
-    """Sort points by label (stable), drop small groups: (points, offsets, n_dropped)."""
-    if pts.shape[0] == 0:
-        return np.empty((0, 2)), np.zeros(1, np.int64), 0
-    _, inv, counts = np.unique(labels, return_inverse=True, return_counts=True)
-    keep = counts[inv] >= min_points
-    order = np.argsort(inv, kind="stable")
-    order = order[keep[order]]
-    sizes = counts[counts >= min_points]
-    off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-    return np.ascontiguousarray(pts[order]), off, int((~keep).sum())
+    """Group points by label (in [0, m)), drop small groups: (points, offsets, n_dropped)."""
+    p, off, small = _group_kernel(np.ascontiguousarray(pts, dtype=np.float64),
+                                  np.ascontiguousarray(labels, dtype=np.int64), int(min_points))
+    return p, off, int(small)
+
+
+@njit(cache=True)
+def _valid_returns(pts, r, ang, hit):  # type: ignore[no-untyped-def]
+    """The returns with a hit, a finite point and a finite range, compacted: (pts, r, ang, n_invalid)."""
+    n = pts.shape[0]
+    keep = np.zeros(n, np.bool_)
+    k, n_hit = 0, 0
+    for i in range(n):
+        if hit[i]:
+            n_hit += 1
+            if np.isfinite(pts[i, 0]) and np.isfinite(pts[i, 1]) and np.isfinite(r[i]):
+                keep[i] = True
+                k += 1
+    p, rr, aa = np.empty((k, 2)), np.empty(k), np.empty(k)
+    j = 0
+    for i in range(n):
+        if keep[i]:
+            p[j, 0], p[j, 1], rr[j], aa[j] = pts[i, 0], pts[i, 1], r[i], ang[i]
+            j += 1
+    return p, rr, aa, n_hit - k
 
 
 def _coast_filter(pts: _F8, land: LandMask | None, margin: float) -> tuple[_F8, NDArray[np.bool_]]:
@@ -213,20 +261,18 @@ def cluster_scan(scan: LidarScan, land: LandMask | None = None, config: ClusterC
     Clusters
     """
     cfg = config or ClusterConfig()
-    pts = np.asarray(scan.points_ned, dtype=np.float64)
-    r = np.asarray(scan.ranges_m, dtype=np.float64)
-    valid = np.asarray(scan.hit, bool) & np.isfinite(pts).all(axis=1) & np.isfinite(r)
-    n_invalid = int(np.asarray(scan.hit, bool).sum() - valid.sum())
-    ang = np.asarray(scan.angles_rad, dtype=np.float64)[valid]
-    pts, r = pts[valid], r[valid]
+    pts, r, ang, n_invalid = _valid_returns(
+        np.ascontiguousarray(scan.points_ned, dtype=np.float64), np.ascontiguousarray(scan.ranges_m, dtype=np.float64),
+        np.ascontiguousarray(scan.angles_rad, dtype=np.float64), np.ascontiguousarray(scan.hit, dtype=np.bool_))
     n_before = pts.shape[0]
-    pts, water = _coast_filter(pts, land, cfg.coast_margin_m)
-    r, ang = r[water], ang[water]
-    labels = _link_ordered(np.ascontiguousarray(pts), r, ang, cfg.link_m, cfg.incidence_rad,
+    if land is not None and n_before:
+        pts, water = _coast_filter(pts, land, cfg.coast_margin_m)
+        pts, r, ang = np.ascontiguousarray(pts), r[water], ang[water]
+    labels = _link_ordered(pts, r, ang, cfg.link_m, cfg.incidence_rad,
                            3.0 * cfg.range_std_m, int(cfg.window), cfg.max_link_m)
-    p, off, small = _group(pts, labels, int(cfg.min_points))
-    return Clusters(points=p, offsets=off, t_s=float(scan.t_s), origin_ned=np.asarray(scan.origin_ned, float).copy(),
-                    n_coast=n_before - pts.shape[0], n_invalid=n_invalid, n_small=small)
+    p, off, small = _group_kernel(pts, labels, int(cfg.min_points))
+    return Clusters(points=p, offsets=off, t_s=float(scan.t_s), origin_ned=np.array(scan.origin_ned, dtype=float),
+                    n_coast=n_before - pts.shape[0], n_invalid=int(n_invalid), n_small=int(small))
 
 
 def cluster_points(

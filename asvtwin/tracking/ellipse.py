@@ -37,7 +37,15 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from asvtwin.errors import ParameterError, StateError
-from asvtwin.tracking.smallmat import inv_small, mm, mv
+from asvtwin.tracking.smallmat import (
+    chol3_into,
+    inv3_into,
+    inv_lower3_into,
+    inv_small,
+    mm_into,
+    mv,
+    top_eig_sym3_into,
+)
 
 __all__ = [
     "FIT_COLLINEAR",
@@ -67,9 +75,27 @@ _C1 = np.array([[0.0, 0.0, 2.0], [0.0, -1.0, 0.0], [2.0, 0.0, 0.0]])
 
 
 @njit(cache=True)
-def _distinct_finite(p):  # type: ignore[no-untyped-def]
-    """Rows of p that are finite, exact duplicates removed (first kept)."""
+def _distinct_finite(p, xs):  # type: ignore[no-untyped-def]
+    """Rows of p that are finite, exact duplicates removed (first kept).
+
+    Fast path (the usual LiDAR cluster): all finite and no two equal north coordinates,
+    seen on a sorted copy in the scratch ``xs``: ``p`` itself, no argsort, no copy.
+    """
     n = p.shape[0]
+    clean = True
+    for i in range(n):
+        xs[i] = p[i, 0]
+        if not (np.isfinite(p[i, 0]) and np.isfinite(p[i, 1])):
+            clean = False
+    if clean:
+        xv = xs[:n]
+        xv.sort()
+        for i in range(1, n):
+            if xv[i] == xv[i - 1]:
+                clean = False
+                break
+        if clean:
+            return p
     keep = np.zeros(n, np.bool_)
     for i in range(n):
         keep[i] = np.isfinite(p[i, 0]) and np.isfinite(p[i, 1])
@@ -90,92 +116,13 @@ def _distinct_finite(p):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _inv3(A):  # type: ignore[no-untyped-def]
-    """Inverse of a 3x3 matrix by its adjugate (caller guarantees it is regular)."""
-    B = np.empty((3, 3))
-    B[0, 0] = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
-    B[0, 1] = A[0, 2] * A[2, 1] - A[0, 1] * A[2, 2]
-    B[0, 2] = A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]
-    B[1, 0] = A[1, 2] * A[2, 0] - A[1, 0] * A[2, 2]
-    B[1, 1] = A[0, 0] * A[2, 2] - A[0, 2] * A[2, 0]
-    B[1, 2] = A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]
-    B[2, 0] = A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]
-    B[2, 1] = A[0, 1] * A[2, 0] - A[0, 0] * A[2, 1]
-    B[2, 2] = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
-    det = A[0, 0] * B[0, 0] + A[0, 1] * B[1, 0] + A[0, 2] * B[2, 0]
-    return B / det
+def _fit_one(p, method, C1, out, x, y, ang, ws, v3):  # type: ignore[no-untyped-def]
+    """Fit one cluster; writes [status, n, cn, ce, a_major, b_minor, angle, coverage, cond, resid].
 
-
-@njit(cache=True)
-def _top_eig_sym3(G):  # type: ignore[no-untyped-def]
-    """Largest eigenvalue of a symmetric 3x3 matrix and a unit eigenvector (closed form).
-
-    Eigenvalues by the trigonometric method (Smith 1961); the eigenvector is the largest
-    cross product of two rows of ``G - mu I`` (orthogonal to both, so in its null space).
+    ``x``, ``y``, ``ang`` (>= len(p)), ``ws`` (12, 3, 3) and ``v3`` (3,) are scratch buffers
+    owned by the caller, so the usual path allocates nothing.
     """
-    p1 = G[0, 1] ** 2 + G[0, 2] ** 2 + G[1, 2] ** 2
-    q = (G[0, 0] + G[1, 1] + G[2, 2]) / 3.0
-    p2 = (G[0, 0] - q) ** 2 + (G[1, 1] - q) ** 2 + (G[2, 2] - q) ** 2 + 2.0 * p1
-    p = np.sqrt(p2 / 6.0)
-    v = np.zeros(3)
-    if p == 0.0:
-        v[0] = 1.0
-        return q, v
-    B = (G - q * np.eye(3)) / p
-    r = 0.5 * (B[0, 0] * (B[1, 1] * B[2, 2] - B[1, 2] * B[2, 1])
-               - B[0, 1] * (B[1, 0] * B[2, 2] - B[1, 2] * B[2, 0])
-               + B[0, 2] * (B[1, 0] * B[2, 1] - B[1, 1] * B[2, 0]))
-    r = min(max(r, -1.0), 1.0)
-    mu = q + 2.0 * p * np.cos(np.arccos(r) / 3.0)
-    A = G - mu * np.eye(3)
-    best = -1.0
-    for i, j in ((0, 1), (0, 2), (1, 2)):
-        cx = A[i, 1] * A[j, 2] - A[i, 2] * A[j, 1]
-        cy = A[i, 2] * A[j, 0] - A[i, 0] * A[j, 2]
-        cz = A[i, 0] * A[j, 1] - A[i, 1] * A[j, 0]
-        nn = cx * cx + cy * cy + cz * cz
-        if nn > best:
-            best = nn
-            v[0], v[1], v[2] = cx, cy, cz
-    v /= np.sqrt(best) if best > 0.0 else 1.0
-    return mu, v
-
-
-@njit(cache=True)
-def _chol3(A):  # type: ignore[no-untyped-def]
-    """Cholesky factor of a 3x3 symmetric matrix (zero diagonal entry when not PD)."""
-    L = np.zeros((3, 3))
-    for i in range(3):
-        for j in range(i + 1):
-            acc = A[i, j]
-            for k in range(j):
-                acc -= L[i, k] * L[j, k]
-            if i == j:
-                if acc <= 0.0:
-                    return L
-                L[i, i] = np.sqrt(acc)
-            else:
-                L[i, j] = acc / L[j, j]
-    return L
-
-
-@njit(cache=True)
-def _inv_lower3(L):  # type: ignore[no-untyped-def]
-    """Inverse of a 3x3 lower-triangular matrix by forward substitution."""
-    Li = np.zeros((3, 3))
-    for c in range(3):
-        for i in range(c, 3):
-            acc = 1.0 if i == c else 0.0
-            for k in range(c, i):
-                acc -= L[i, k] * Li[k, c]
-            Li[i, c] = acc / L[i, i]
-    return Li
-
-
-@njit(cache=True)
-def _fit_one(p, method, C1, out):  # type: ignore[no-untyped-def]
-    """Fit one cluster; writes [status, n, cn, ce, a_major, b_minor, angle, coverage, cond, resid]."""
-    q = _distinct_finite(p)
+    q = _distinct_finite(p, ang)
     n = q.shape[0]
     out[1] = n
     if n < 5:
@@ -187,8 +134,6 @@ def _fit_one(p, method, C1, out):  # type: ignore[no-untyped-def]
         me += q[k, 1]
     mn /= n
     me /= n
-    x = np.empty(n)
-    y = np.empty(n)
     ss = 0.0
     for k in range(n):
         x[k] = q[k, 0] - mn
@@ -214,48 +159,88 @@ def _fit_one(p, method, C1, out):  # type: ignore[no-untyped-def]
     if lmin <= 1e-12 * lmax:
         out[0] = 2
         return
-    # moments m[i, j] = sum x^i y^j, i + j <= 4, in one pass (no design matrix)
-    m = np.zeros((5, 5))
+    # moments m_ij = sum x^i y^j, i + j <= 4, in one pass (no design matrix); each power
+    # is built as x^i first, then times y j times
+    m00 = m01 = m02 = m03 = m04 = m10 = m11 = m12 = m13 = m20 = m21 = m22 = m30 = m31 = m40 = 0.0
     for k in range(n):
         xk, yk = x[k], y[k]
-        px = 1.0
-        for i in range(5):
-            py = px
-            for j in range(5 - i):
-                m[i, j] += py
-                py *= yk
-            px *= xk
+        y2 = yk * yk
+        y3 = y2 * yk
+        x2 = xk * xk
+        x3 = x2 * xk
+        xy = xk * yk
+        xy2 = xy * yk
+        x2y = x2 * yk
+        m00 += 1.0
+        m01 += yk
+        m02 += y2
+        m03 += y3
+        m04 += y3 * yk
+        m10 += xk
+        m11 += xy
+        m12 += xy2
+        m13 += xy2 * yk
+        m20 += x2
+        m21 += x2y
+        m22 += x2y * yk
+        m30 += x3
+        m31 += x3 * yk
+        m40 += x3 * xk
     # S1 = D1'D1, S2 = D1'D2, S3 = D2'D2 with D1 = [x^2, xy, y^2], D2 = [x, y, 1]
-    S1 = np.array([[m[4, 0], m[3, 1], m[2, 2]],
-                   [m[3, 1], m[2, 2], m[1, 3]],
-                   [m[2, 2], m[1, 3], m[0, 4]]])
-    S2 = np.array([[m[3, 0], m[2, 1], m[2, 0]],
-                   [m[2, 1], m[1, 2], m[1, 1]],
-                   [m[1, 2], m[0, 3], m[0, 2]]])
-    S3 = np.array([[m[2, 0], m[1, 1], m[1, 0]],
-                   [m[1, 1], m[0, 2], m[0, 1]],
-                   [m[1, 0], m[0, 1], m[0, 0]]])
-    coef = np.zeros(6)
+    S1, S2, S3 = ws[0], ws[1], ws[2]
+    S1[0, 0], S1[0, 1], S1[0, 2] = m40, m31, m22
+    S1[1, 0], S1[1, 1], S1[1, 2] = m31, m22, m13
+    S1[2, 0], S1[2, 1], S1[2, 2] = m22, m13, m04
+    S2[0, 0], S2[0, 1], S2[0, 2] = m30, m21, m20
+    S2[1, 0], S2[1, 1], S2[1, 2] = m21, m12, m11
+    S2[2, 0], S2[2, 1], S2[2, 2] = m12, m03, m02
+    S3[0, 0], S3[0, 1], S3[0, 2] = m20, m11, m10
+    S3[1, 0], S3[1, 1], S3[1, 2] = m11, m02, m01
+    S3[2, 0], S3[2, 1], S3[2, 2] = m10, m01, m00
     if method == 0:
-        Tm = -mm(_inv3(S3), np.ascontiguousarray(S2.T))  # a2 = Tm a1
-        T = S1 + mm(S2, Tm)  # reduced scatter, symmetric PSD
-        T = 0.5 * (T + T.T)
-        T += (1e-13 * np.trace(T) + 1e-300) * np.eye(3)  # exact conics make T singular
-        L = _chol3(T)
-        if L[0, 0] <= 0.0 or L[1, 1] <= 0.0 or L[2, 2] <= 0.0:
+        S3i, S2T, Tm, M, T, L, Li, LiT, W = ws[3], ws[4], ws[5], ws[6], ws[7], ws[8], ws[9], ws[10], ws[11]
+        G0 = M  # M is free again once T is formed
+        inv3_into(S3, S3i)
+        for i in range(3):
+            for j in range(3):
+                S2T[i, j] = S2[j, i]
+        mm_into(S3i, S2T, Tm)
+        for i in range(3):
+            for j in range(3):
+                Tm[i, j] = -Tm[i, j]  # a2 = Tm a1
+        mm_into(S2, Tm, M)
+        for i in range(3):
+            for j in range(3):
+                M[i, j] += S1[i, j]  # S1 + S2 Tm
+        for i in range(3):
+            for j in range(3):
+                T[i, j] = 0.5 * (M[i, j] + M[j, i])  # reduced scatter, symmetric PSD
+        reg = 1e-13 * (T[0, 0] + T[1, 1] + T[2, 2]) + 1e-300  # exact conics make T singular
+        for i in range(3):
+            T[i, i] += reg
+        if not chol3_into(T, L):
             out[0] = 3
             return
-        Li = _inv_lower3(L)
-        G = mm(mm(Li, C1), np.ascontiguousarray(Li.T))  # L^-1 C1 L^-T: one positive eigenvalue
-        G = 0.5 * (G + G.T)
-        mu, y1 = _top_eig_sym3(G)
+        inv_lower3_into(L, Li)
+        for i in range(3):
+            for j in range(3):
+                LiT[i, j] = Li[j, i]
+        mm_into(Li, C1, W)
+        mm_into(W, LiT, G0)  # L^-1 C1 L^-T: one positive eigenvalue
+        for i in range(3):
+            for j in range(3):
+                W[i, j] = 0.5 * (G0[i, j] + G0[j, i])
+        mu = top_eig_sym3_into(W, v3)
         if not mu > 0.0:  # no eigenvector with 4ac - b^2 > 0
             out[0] = 3
             return
-        a1 = mv(np.ascontiguousarray(Li.T), y1)
-        a2 = mv(Tm, a1)
-        coef[:3] = a1
-        coef[3:] = a2
+        a1 = (LiT[0, 0] * v3[0] + LiT[0, 1] * v3[1] + LiT[0, 2] * v3[2],
+              LiT[1, 0] * v3[0] + LiT[1, 1] * v3[1] + LiT[1, 2] * v3[2],
+              LiT[2, 0] * v3[0] + LiT[2, 1] * v3[1] + LiT[2, 2] * v3[2])
+        a, b, c = a1
+        d = Tm[0, 0] * a + Tm[0, 1] * b + Tm[0, 2] * c
+        e = Tm[1, 0] * a + Tm[1, 1] * b + Tm[1, 2] * c
+        f = Tm[2, 0] * a + Tm[2, 1] * b + Tm[2, 2] * c
     else:
         # normal equations of [x^2, xy, y^2, x, y] w = 1 (MLR, f = -1)
         N = np.empty((5, 5))
@@ -263,10 +248,9 @@ def _fit_one(p, method, C1, out):  # type: ignore[no-untyped-def]
         N[:3, 3:] = S2[:, :2]
         N[3:, :3] = S2[:, :2].T
         N[3:, 3:] = S3[:2, :2]
-        rhs = np.array([m[2, 0], m[1, 1], m[0, 2], m[1, 0], m[0, 1]])
-        coef[:5] = mv(inv_small(N), rhs)
-        coef[5] = -1.0
-    a, b, c, d, e, f = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5]
+        rhs = np.array([m20, m11, m02, m10, m01])
+        w = mv(inv_small(N), rhs)
+        a, b, c, d, e, f = w[0], w[1], w[2], w[3], w[4], -1.0
     det4 = 4.0 * a * c - b * b
     if not det4 > 0.0:  # 4ac - b^2 > 0: ellipse condition, eq. (shape_fitting_unequality)
         out[0] = 3
@@ -287,7 +271,6 @@ def _fit_one(p, method, C1, out):  # type: ignore[no-untyped-def]
     # quality: arc coverage about the fitted centre (in the ellipse's own parameter),
     # RMS Sampson distance
     ct, st = np.cos(theta), np.sin(theta)
-    ang = np.empty(n)
     samp = 0.0
     for k in range(n):
         dx, dy = x[k] - x0, y[k] - y0
@@ -296,10 +279,11 @@ def _fit_one(p, method, C1, out):  # type: ignore[no-untyped-def]
         gx = 2.0 * a * x[k] + b * y[k] + d
         gy = b * x[k] + 2.0 * c * y[k] + e
         samp += F * F / max(gx * gx + gy * gy, 1e-300)
-    ang.sort()
-    gap = ang[0] + 2.0 * np.pi - ang[n - 1]
+    av = ang[:n]
+    av.sort()
+    gap = av[0] + 2.0 * np.pi - av[n - 1]
     for i in range(1, n):
-        gap = max(gap, ang[i] - ang[i - 1])
+        gap = max(gap, av[i] - av[i - 1])
     out[0] = 0
     out[2] = mn + s * x0
     out[3] = me + s * y0
@@ -314,8 +298,13 @@ def _fit_one(p, method, C1, out):  # type: ignore[no-untyped-def]
 def _fit_many(points, offsets, method, C1):  # type: ignore[no-untyped-def]
     k = offsets.shape[0] - 1
     out = np.full((k, 10), np.nan)
+    big = 1
     for i in range(k):
-        _fit_one(points[offsets[i]:offsets[i + 1]], method, C1, out[i])
+        big = max(big, offsets[i + 1] - offsets[i])
+    x, y, ang = np.empty(big), np.empty(big), np.empty(big)
+    ws, v3 = np.empty((12, 3, 3)), np.empty(3)
+    for i in range(k):
+        _fit_one(points[offsets[i]:offsets[i + 1]], method, C1, out[i], x, y, ang, ws, v3)
     return out
 
 
@@ -382,6 +371,13 @@ class EllipseFits:
     def __len__(self) -> int:
         return int(self.status.shape[0])
 
+    @classmethod
+    def from_array(cls, out: _F8) -> EllipseFits:
+        """From the fit kernel's rows ``[status, n, cn, ce, a, b, angle, coverage, cond, resid]``."""
+        return cls(status=out[:, 0].astype(np.int64), centre=out[:, 2:4].copy(), semi_axes=out[:, 4:6].copy(),
+                   angle_rad=out[:, 6].copy(), n_points=out[:, 1].astype(np.int64),
+                   arc_coverage_rad=out[:, 7].copy(), condition=out[:, 8].copy(), residual_m=out[:, 9].copy())
+
     def __getitem__(self, i: int) -> EllipseFit:
         code = int(self.status[i])
         return EllipseFit(
@@ -425,17 +421,7 @@ def fit_ellipses(points: ArrayLike, offsets: ArrayLike, *, method: str = "halir_
             f"offsets must be non-decreasing from 0 to {p.shape[0]} (the number of points), "
             f"actually: {off[:8].tolist()}{'...' if off.size > 8 else ''}"
         )
-    out = _fit_many(p, off, code, _C1)
-    return EllipseFits(
-        status=out[:, 0].astype(np.int64),
-        centre=out[:, 2:4].copy(),
-        semi_axes=out[:, 4:6].copy(),
-        angle_rad=out[:, 6].copy(),
-        n_points=out[:, 1].astype(np.int64),
-        arc_coverage_rad=out[:, 7].copy(),
-        condition=out[:, 8].copy(),
-        residual_m=out[:, 9].copy(),
-    )
+    return EllipseFits.from_array(_fit_many(p, off, code, _C1))
 
 
 def fit_ellipse(points: ArrayLike, *, method: str = "halir_flusser") -> EllipseFit:

@@ -53,7 +53,7 @@ _F8 = NDArray[np.float64]
 FUSION_METHODS = ("product", "gain_weighted", "covariance_intersection")
 
 
-def _sym(P: _F8) -> _F8:
+def _sym(P: NDArray[np.floating]) -> _F8:
     return 0.5 * (P + P.transpose(0, 2, 1))
 
 

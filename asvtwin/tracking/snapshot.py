@@ -19,7 +19,7 @@ TRACK_STATUS = ("tentative", "confirmed", "coasting")
 
 
 def _ro(a: ArrayLike, dtype: type) -> NDArray:  # type: ignore[type-arg]
-    out = np.array(a, dtype=dtype, copy=True)
+    out: NDArray = np.array(a, dtype=dtype, copy=True)  # type: ignore[type-arg]
     out.flags.writeable = False
     return out
 

@@ -32,7 +32,6 @@ from collections.abc import Sequence
 from types import MappingProxyType
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from asvtwin.geo.land import LandMask
@@ -41,17 +40,24 @@ from asvtwin.tracking.association import gate_threshold, gated_costs, gnn_assign
 from asvtwin.tracking.clustering import Clusters, cluster_scan
 from asvtwin.tracking.config import TrackerConfig
 from asvtwin.tracking.fusion import (
+    _product_kernel,
     fuse_covariance_intersection,
     fuse_gain_weighted,
-    fuse_product,
 )
-from asvtwin.tracking.kalman import H_FULL, H_POSITION, cv_predict, kalman_update
+from asvtwin.tracking.kalman import H_FULL, H_POSITION, _predict_kernel
 from asvtwin.tracking.measurement import (
     AisMeasurement,
+    AisMeasurementBatch,
     ais_measurements,
     lidar_measurements,
 )
 from asvtwin.tracking.snapshot import TrackSnapshot
+from asvtwin.tracking.tracker_kernels import (
+    coincident,
+    near_tracks,
+    position_mahalanobis,
+    update_rows,
+)
 
 __all__ = ["Tracker"]
 
@@ -71,31 +77,6 @@ _FIELDS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "ais_rej": ((), np.int64, 0), "confirmed": ((), np.bool_, False), "axes": ((2,), np.float64, np.nan),
     "gotL": ((), np.bool_, False), "gotA": ((), np.bool_, False),
 }
-
-
-@njit(cache=True)
-def _coincident(x, P, mmsi, gamma):  # type: ignore[no-untyped-def]
-    """Pairs (i < j) whose position and velocity differences are within the χ² gate."""
-    n = x.shape[0]
-    out_i, out_j = [], []
-    for i in range(n):
-        for j in range(i + 1, n):
-            if mmsi[i] >= 0 and mmsi[j] >= 0:
-                continue  # two identified vessels are never one
-            ok = True
-            for o in (0, 2):  # position block, then velocity block
-                a = P[i, o, o] + P[j, o, o]
-                b = P[i, o, o + 1] + P[j, o, o + 1]
-                c = P[i, o + 1, o + 1] + P[j, o + 1, o + 1]
-                dn, de = x[i, o] - x[j, o], x[i, o + 1] - x[j, o + 1]
-                det = a * c - b * b
-                if not (det > 0.0 and (c * dn * dn - 2.0 * b * dn * de + a * de * de) / det <= gamma):
-                    ok = False
-                    break
-            if ok:
-                out_i.append(i)
-                out_j.append(j)
-    return np.array(out_i, np.int64), np.array(out_j, np.int64)
 
 
 class Tracker:
@@ -163,7 +144,7 @@ class Tracker:
         self,
         t_s: float,
         scan: LidarScan | Clusters | None = None,
-        ais: Sequence[AisMeasurement] = (),
+        ais: Sequence[AisMeasurement] | AisMeasurementBatch = (),
     ) -> TrackSnapshot:
         """Advance to ``t_s`` and take in one LiDAR scan and the AIS reports since the last tick.
 
@@ -173,8 +154,10 @@ class Tracker:
             Tick time [s] since the scene start; must not decrease.
         scan : LidarScan or Clusters or None
             The scan taken at ``t_s`` (or clusters from another segmenter), or None.
-        ais : sequence of AisMeasurement
-            AIS reports received since the last tick.
+        ais : sequence of AisMeasurement, or AisMeasurementBatch
+            AIS reports received since the last tick, as objects or as columns
+            (:meth:`AisMeasurementBatch.from_batch` takes the AIS pipeline's ``ReportBatch``);
+            both give the same result.
 
         Returns
         -------
@@ -195,10 +178,11 @@ class Tracker:
         n = a["x"].shape[0]
 
         # 1. predictor
-        if n:
-            a["x"], a["P"] = cv_predict(a["x"], a["P"], dt, cfg.q)
-            a["xL"], a["PL"] = cv_predict(a["xL"], a["PL"], dt, cfg.q)
-            a["xA"], a["PA"] = cv_predict(a["xA"], a["PA"], dt, cfg.q)
+        if n:  # cv_predict's kernel (dt is checked above, q by TrackerConfig)
+            dts, qs = np.full(n, dt), np.full(n, float(cfg.q))
+            a["x"], a["P"] = _predict_kernel(a["x"], a["P"], dts, qs)
+            a["xL"], a["PL"] = _predict_kernel(a["xL"], a["PL"], dts, qs)
+            a["xA"], a["PA"] = _predict_kernel(a["xA"], a["PA"], dts, qs)
         a["gotL"] = np.zeros(n, bool)
         a["gotA"] = np.zeros(n, bool)
 
@@ -242,9 +226,7 @@ class Tracker:
             tj = np.flatnonzero(tied >= 0)
             if tj.size:
                 ti = tied[tj]
-                d = am.z[tj, :2] - a["x"][ti, :2]
-                S = a["P"][ti, :2, :2] + am.R[tj, :2, :2]
-                d2 = np.einsum("ni,nij,nj->n", d, np.linalg.inv(S), d)
+                d2 = position_mahalanobis(am.z[tj, :2] - a["x"][ti, :2], a["P"][ti, :2, :2], am.R[tj, :2, :2])
                 ok = d2 <= self._gA_tied
                 self._count("ais_gated_out", int((~ok).sum()), "AIS reports far from their own track rejected")
                 a["gotA"][ti[ok]] = True
@@ -272,9 +254,8 @@ class Tracker:
         # 4. updater
         gotL, gotA = a["gotL"], a["gotA"]
         self._update_sensor_filters(zL, RL, zA, RA)
-        if cfg.fusion == "product":
-            a["x"], a["P"] = fuse_product(a["x"], a["P"], z_lidar=zL, R_lidar=RL, has_lidar=gotL,
-                                          z_ais=zA, R_ais=RA, has_ais=gotA)
+        if cfg.fusion == "product":  # fuse_product's kernel: zL/RL, zA/RA are finite, 0/I where absent
+            a["x"], a["P"] = _product_kernel(a["x"], a["P"], zL, RL, gotL, H_POSITION, zA, RA, gotA, H_FULL)
         else:
             self._fuse_filters(t)
         hit = gotL | gotA
@@ -310,9 +291,8 @@ class Tracker:
             (a["gotA"], a["hasA"], "xA", "PA", "GA", "tA", zA, RA, H_FULL),
         ):
             upd = np.flatnonzero(got & has)
-            if upd.size:
-                u = kalman_update(a[xk][upd], a[Pk][upd], z[upd], R[upd], H)
-                a[xk][upd], a[Pk][upd], a[Gk][upd] = u.x, u.P, u.K @ H
+            if upd.size:  # kalman_update of those rows, in place
+                update_rows(a[xk], a[Pk], a[Gk], upd, z, R, np.ascontiguousarray(H))
             init = np.flatnonzero(got & ~has)
             if init.size:
                 xi, Pi = self._initial_state(z[init], R[init])
@@ -386,7 +366,7 @@ class Tracker:
         if a["x"].shape[0] < 2:
             self._pairs = {}
             return
-        ii, jj = _coincident(a["x"], a["P"], a["mmsi"], self._gM)
+        ii, jj = coincident(a["x"], a["P"], a["mmsi"], self._gM)
         pairs: dict[tuple[int, int], int] = {}
         drop = np.zeros(a["x"].shape[0], bool)
         for i, j in zip(ii.tolist(), jj.tolist()):
@@ -408,10 +388,8 @@ class Tracker:
     def _start_from_lidar(self, t: float, z: _F8, R: _F8) -> None:
         a, cfg = self._a, self.config
         if a["x"].shape[0]:
-            d = np.hypot(*(z[:, None, :] - a["x"][None, :, :2]).transpose(2, 0, 1))
-            d2 = gated_costs(a["x"][:, :2], a["P"][:, :2, :2], z, R, self._gL)[1]
-            sep = np.maximum(cfg.min_separation_m, np.nan_to_num(a["axes"][:, 0], nan=0.0) + 10.0)
-            near = ((d < sep[None, :]) | (d2 <= self._gL).T).any(axis=1)
+            near = near_tracks(z, R, a["x"], a["P"], np.ascontiguousarray(a["axes"][:, 0]),
+                               float(cfg.min_separation_m), self._gL)
             self._count("init_suppressed", int(near.sum()))
             z, R = z[~near], R[~near]
         if not len(z):
