@@ -37,3 +37,4 @@ lint: $(VENV)/.installed-test
 
 clean:
 	rm -rf $(VENV) out .pytest_cache
+	find asvtwin -name '*.nbi' -o -name '*.nbc' | xargs rm -f
