@@ -21,7 +21,6 @@ from asvtwin.sources.ais import (
     TargetRegistry,
     TargetSnapshot,
     open_ais_source,
-    to_tracker_measurement,
 )
 from asvtwin.sources.history import HistoryStore, SqliteHistory, replay_session
 from asvtwin.sources.weather import (
@@ -50,5 +49,4 @@ __all__ = [
     "WeatherSeries",
     "open_ais_source",
     "replay_session",
-    "to_tracker_measurement",
 ]

@@ -90,6 +90,18 @@ class AisMeasurement:
     sog_m_s: float = float("nan")
     cog_rad: float = float("nan")
 
+    @classmethod
+    def from_report(cls, report: Any, *, epoch_unix_s: float = 0.0) -> AisMeasurement:
+        """From a validated AIS report (``asvtwin.sources.ais.AisReport``, read by field
+        name): ``t_s = t_unix_s − epoch_unix_s``; "not available" (None) becomes NaN."""
+
+        def num(v: float | None) -> float:
+            return float("nan") if v is None else float(v)
+
+        return cls(int(report.mmsi), float(report.t_unix_s) - epoch_unix_s,
+                   float(report.north_m), float(report.east_m), num(report.sog_m_s),
+                   num(report.cog_rad))
+
 
 def _positive(cls: str, name: str, value: float, lo_ok: bool = False) -> None:
     ok = (value >= 0.0 if lo_ok else value > 0.0) and np.isfinite(value)
@@ -333,7 +345,7 @@ class AisMeasurementBatch:
         batch : asvtwin.sources.ais.ReportBatch or alike
             Needs the columns ``mmsi``, ``t_unix_s``, ``north_m``, ``east_m``, ``sog_m_s``
             and ``cog_rad`` (NaN = not available), as
-            :func:`asvtwin.sources.ais.to_tracker_measurement` reads them row by row.
+            :meth:`AisMeasurement.from_report` reads them row by row.
         epoch_unix_s : float
             UNIX time of the simulation's t = 0 [s]: ``t_s = t_unix_s - epoch_unix_s``.
         """

@@ -15,7 +15,6 @@ from asvtwin.sources.ais import (
     TargetRegistry,
     default_fleet,
     nominal_report_interval_s,
-    to_tracker_measurement,
 )
 from asvtwin.vessel import BatchSimulator
 
@@ -157,17 +156,13 @@ def test_memory_is_bounded_under_mmsi_churn() -> None:
     assert snap.mmsi.min() >= 200_049_000  # the newest batch won
 
 
-def test_tracker_measurement_fields() -> None:
-    m = to_tracker_measurement(report(t=T0 + 12.5), epoch_unix_s=T0)
-    get = m.__getitem__ if isinstance(m, dict) else lambda k: getattr(m, k)
-    assert get("mmsi") == 257000001 and get("t_s") == 12.5
-    assert get("sog_m_s") == 5.0 and get("cog_rad") == pytest.approx(math.pi / 4)
+def test_report_becomes_the_trackers_measurement() -> None:
+    from asvtwin.tracking import AisMeasurement
 
-
-def test_tracker_measurement_marks_not_available_as_the_tracker_expects() -> None:
-    tracking = pytest.importorskip("asvtwin.tracking")
-    if not hasattr(tracking, "AisMeasurement"):
-        pytest.skip("asvtwin.tracking has no AisMeasurement")
-    m = to_tracker_measurement(report(sog_m_s=None, cog_deg=None), epoch_unix_s=T0)
-    assert isinstance(m, tracking.AisMeasurement)
-    assert math.isnan(m.sog_m_s) and math.isnan(m.cog_rad)
+    m = AisMeasurement.from_report(report(t=T0 + 12.5), epoch_unix_s=T0)
+    assert (m.mmsi, m.t_s) == (257000001, 12.5)
+    assert m.sog_m_s == 5.0 and m.cog_rad == pytest.approx(math.pi / 4)
+    r = report(t=T0 + 1.0)
+    assert (m.north_m, m.east_m) == (r.north_m, r.east_m)
+    na = AisMeasurement.from_report(report(sog_m_s=None, cog_deg=None), epoch_unix_s=T0)
+    assert math.isnan(na.sog_m_s) and math.isnan(na.cog_rad)  # "not available" as NaN

@@ -23,7 +23,6 @@ from asvtwin.sources.ais.reports import (
     AisReport,
     AisStatic,
     ReportBatch,
-    to_tracker_measurement,
 )
 from asvtwin.sources.ais.source import AisSource, Pacer, PipelineSource, SourceStatus, tag_time
 from asvtwin.sources.ais.spec import open_ais_source
@@ -71,5 +70,4 @@ __all__ = [
     "open_ais_source",
     "tag_block",
     "tag_time",
-    "to_tracker_measurement",
 ]

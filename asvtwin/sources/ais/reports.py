@@ -33,7 +33,6 @@ __all__ = [
     "AisReport",
     "AisStatic",
     "ReportBatch",
-    "to_tracker_measurement",
 ]
 
 #: Message types of class B dynamic reports (the rest, 1/2/3, are class A).
@@ -251,40 +250,3 @@ class ReportBatch:
                       None if ns < 0 else ns, st)
             for m, t, k, n, e, la, lo, s, c, h, r, ns, st in cols
         ]
-
-
-def to_tracker_measurement(report: AisReport, *, epoch_unix_s: float = 0.0) -> Any:
-    """Convert a report into the tracker's AIS measurement.
-
-    Returns an ``asvtwin.tracking.AisMeasurement`` (its fields only, "not available" as NaN
-    as the tracker expects) when the tracking package defines it, otherwise a plain dict: ``mmsi``, ``t_s`` (simulation time, i.e.
-    ``t_unix_s - epoch_unix_s`` [s]), ``north_m``, ``east_m``, ``sog_m_s``, ``cog_rad``,
-    ``heading_rad``, ``rot_rad_s`` (None where not available).
-
-    Parameters
-    ----------
-    report : AisReport
-        A validated report.
-    epoch_unix_s : float
-        UNIX time of the simulation's t = 0 [s].
-    """
-    fields: dict[str, Any] = {
-        "mmsi": report.mmsi,
-        "t_s": report.t_unix_s - epoch_unix_s,
-        "north_m": report.north_m,
-        "east_m": report.east_m,
-        "sog_m_s": report.sog_m_s,
-        "cog_rad": report.cog_rad,
-        "heading_rad": report.heading_rad,
-        "rot_rad_s": report.rot_rad_s,
-    }
-    try:
-        from asvtwin.tracking import AisMeasurement  # type: ignore[attr-defined]
-    except ImportError:
-        return fields
-    accepted = {f.name for f in dataclasses.fields(AisMeasurement)} \
-        if dataclasses.is_dataclass(AisMeasurement) else set(fields)
-    # the tracker marks "not available" with NaN in its float fields
-    kwargs: dict[str, Any] = {k: (math.nan if v is None else v) for k, v in fields.items()
-                              if k in accepted}
-    return AisMeasurement(**kwargs)
