@@ -9,6 +9,7 @@ source's error counts.
 
 from __future__ import annotations
 
+import abc
 import asyncio
 from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass
@@ -57,7 +58,7 @@ class AisSource(Protocol):
     def status(self) -> SourceStatus: ...
 
 
-class PipelineSource:
+class PipelineSource(abc.ABC):
     """Base of the sources: holds the pipeline, the clock and the status counters.
 
     Parameters
@@ -84,8 +85,9 @@ class PipelineSource:
     def _now(self) -> float | None:
         return self.clock() if self.clock is not None else None
 
+    @abc.abstractmethod
     def batches(self) -> AsyncIterator[ReportBatch]:
-        raise NotImplementedError
+        """The validated reports, one batch per chunk of input (each source's own)."""
 
     def __aiter__(self) -> AsyncIterator[AisMessage]:
         return self._messages()
