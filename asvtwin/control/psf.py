@@ -17,8 +17,6 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -28,6 +26,7 @@ from asvtwin.control.backends.ocp import DUMMY_DISTANCE_FACTOR, OcpSpec
 from asvtwin.control.fallback import BackupPlan, Fallback, backup_input
 from asvtwin.control.kernels import certify, rollout, warm_up
 from asvtwin.control.obstacles import CoastSegments, Obstacles, stage_circles
+from asvtwin.control.result import CS2_LENGTH_M, ActiveConstraint, FilterResult, PsfConfig
 from asvtwin.control.terminal_set import TerminalSet, compute_terminal_set
 from asvtwin.errors import ConfigError, StateError
 from asvtwin.vessel.params import VesselParams
@@ -36,163 +35,6 @@ __all__ = ["ActiveConstraint", "FilterResult", "PsfConfig", "SafetyFilter"]
 
 log = logging.getLogger(__name__)
 _F8 = NDArray[np.float64]
-#: CyberShip II's length [m]: the reference for the model-scale defaults below.
-_CS2_LENGTH = 1.255
-
-
-@dataclass(frozen=True)
-class PsfConfig:
-    """Settings of the safety filter (defaults: REFERENCE §2, model scale, Froude-scaled
-    by the vessel's length for other hulls when left at None).
-
-    Attributes
-    ----------
-    N, dt_s : int, float
-        Stages and stage length [s] (50 x 0.5 s).
-    backend : str
-        ``"auto"`` (fastest installed: acados, else casadi-ipopt), ``"acados"``,
-        ``"casadi-ipopt"`` or ``"casadi-fatrop"``.
-    d_safe_m : float, optional
-        Safety distance from the own ship's origin to an obstacle's edge [m]; default
-        the ship's length.
-    d_f_m : float, optional
-        Terminal distance d_f [m] (braking distance bound); default 6 ship lengths.
-    nu_max : tuple of 3 floats, optional
-        Soft velocity bounds |u|, |v| [m/s], |r| [rad/s]; default (2, 2, 0.15) scaled.
-    terminal_r_max : float, optional
-        Largest yaw rate of the terminal ellipsoid [rad/s]; default 4·nu_max[2].
-    gamma : tuple of 3 floats
-        γ_u of the paper's W = diag(γ_i / (u_ub,i − u_lb,i)²).
-    later_weight : float
-        Weight of stages 1..N-1 in the cost (the published code: 0, only u_0 counts).
-    slack_l1, slack_l2 : float
-        L1 (100 in the published code) and small L2 penalty of the slacks.
-    n_circles, n_segments : int
-        Obstacle slots: the nearest circles and coast segments are used.
-    certify_tol_m : float, optional
-        Tolerance of the certification of a plan [m]; default 2 % of the ship length.
-    max_iter : int
-        Iteration limit of the CasADi solvers.
-    rti_steps : int
-        Largest number of SQP-RTI steps per call (acados).
-    cold_start_solves : int
-        Solver calls allowed when there is no previous plan to warm-start from.
-    """
-
-    N: int = 50
-    dt_s: float = 0.5
-    backend: str = "auto"
-    d_safe_m: float | None = None
-    d_f_m: float | None = None
-    nu_max: tuple[float, float, float] | None = None
-    terminal_r_max: float | None = None
-    gamma: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    later_weight: float = 1e-3
-    slack_l1: float = 100.0
-    slack_l2: float = 1.0
-    n_circles: int = 20
-    n_segments: int = 4
-    certify_tol_m: float | None = None
-    max_iter: int = 200
-    rti_steps: int = 1
-    cold_start_solves: int = 5
-
-    def __post_init__(self) -> None:
-        checks: list[tuple[str, bool, str]] = [
-            ("N", isinstance(self.N, int) and 1 <= self.N <= 500, "an int in [1, 500]"),
-            ("dt_s", math.isfinite(self.dt_s) and self.dt_s > 0, "> 0"),
-            ("later_weight", self.later_weight >= 0, ">= 0"),
-            ("slack_l1", self.slack_l1 > 0, "> 0"),
-            ("slack_l2", self.slack_l2 >= 0, ">= 0"),
-            ("n_circles", self.n_circles >= 1, ">= 1"),
-            ("n_segments", self.n_segments >= 0, ">= 0"),
-            ("max_iter", self.max_iter >= 1, ">= 1"),
-            ("rti_steps", self.rti_steps >= 1, ">= 1"),
-            ("cold_start_solves", self.cold_start_solves >= 1, ">= 1"),
-            ("gamma", len(self.gamma) == 3 and min(self.gamma) >= 0, "3 values >= 0"),
-        ]
-        for name in ("d_safe_m", "d_f_m", "terminal_r_max", "certify_tol_m"):
-            v = getattr(self, name)
-            checks.append((name, v is None or (math.isfinite(v) and v > 0), "None or > 0"))
-        if self.nu_max is not None:
-            checks.append(("nu_max", len(self.nu_max) == 3 and min(self.nu_max) > 0,
-                           "3 values > 0"))
-        for name, ok, expected in checks:
-            if not ok:
-                raise ConfigError(f"PsfConfig.{name} must be {expected}, actually: "
-                                  f"{getattr(self, name)!r}")
-
-
-@dataclass(frozen=True)
-class ActiveConstraint:
-    """A constraint at (or within the activity tolerance of) its bound.
-
-    ``kind`` is ``"circle"``, ``"segment"``, ``"velocity"`` or ``"terminal_set"``;
-    ``index`` the obstacle's index in the order given (circles: static then moving) or the
-    velocity component; ``stage`` k; ``margin`` its value [m, m/s or 1].
-    """
-
-    kind: Literal["circle", "segment", "velocity", "terminal_set"]
-    index: int
-    stage: int
-    margin: float
-
-
-@dataclass(frozen=True)
-class FilterResult:
-    """The filter's answer for one call, with its explanation.
-
-    Attributes
-    ----------
-    u0 : ndarray, shape (3,)
-        The safe input to apply [N, N, Nm].
-    delta_u : ndarray, shape (3,)
-        Intervention δ_u = u_L − u_0.
-    x_pred, u_pred : ndarray, shapes (N+1, 6) and (N, 3)
-        The plan behind ``u0`` (states simulated on the model from the current state).
-    obstacle_margin_m : ndarray, shape (N+1,)
-        Per stage, the smallest distance to an obstacle minus the required clearance
-        (d_safe; d_safe + d_f at N) [m]; stage 0 is the current state.
-    velocity_margin : ndarray, shape (N+1, 3)
-        ν_max − |ν| per stage [m/s, m/s, rad/s] (soft bounds).
-    terminal_margin : float
-        1 − ν_Nᵀ P_f ν_N (≥ 0: inside the terminal ellipsoid).
-    active : tuple of ActiveConstraint
-        Constraints within the activity tolerance (the explanation of an intervention).
-    success : bool
-        The fresh plan was certified and used (``fallback == "none"``).
-    status : str
-        Solver status word (and the reason when not certified).
-    iterations : int
-        Solver iterations.
-    solve_time_s : float
-        Solver wall time [s].
-    fallback : str
-        ``"none"``, ``"plan_tail"`` or ``"braking"``.
-    backend : str
-        Backend name.
-    """
-
-    u0: _F8
-    delta_u: _F8
-    x_pred: _F8
-    u_pred: _F8
-    obstacle_margin_m: _F8
-    velocity_margin: _F8
-    terminal_margin: float
-    active: tuple[ActiveConstraint, ...]
-    success: bool
-    status: str
-    iterations: int
-    solve_time_s: float
-    fallback: str
-    backend: str
-    critical: tuple[tuple[float, float, float], ...] = field(default=())
-
-    @property
-    def intervened(self) -> bool:
-        """True when u_0 differs from u_L by more than 1 % of the input range."""
-        return bool(np.max(np.abs(self.delta_u)) > 1e-2)
 
 
 def _validate(a: ArrayLike | None, n: int, what: str, fields: tuple[str, ...]) -> _F8:
@@ -231,7 +73,7 @@ class SafetyFilter:
     def __init__(self, params: VesselParams, *, config: PsfConfig | None = None) -> None:
         self.params = params
         self.config = cfg = config or PsfConfig()
-        scale = params.length / _CS2_LENGTH
+        scale = params.length / CS2_LENGTH_M
         sq = math.sqrt(scale)
         self.d_safe_m = cfg.d_safe_m if cfg.d_safe_m is not None else params.length
         self.d_f_m = cfg.d_f_m if cfg.d_f_m is not None else 6.0 * params.length
