@@ -37,11 +37,11 @@ from numpy.typing import NDArray
 
 from asvtwin.errors import ParameterError
 from asvtwin.sources.ais.reports import AisReport, AisStatic, ReportBatch
+from asvtwin.units import KNOT_M_S
 
 __all__ = ["TargetRegistry", "TargetSnapshot", "nominal_report_interval_s"]
 
 _F8 = NDArray[np.float64]
-_KN = 1852.0 / 3600.0
 
 
 def nominal_report_interval_s(sog_m_s: _F8, class_b: NDArray[np.bool_],
@@ -57,7 +57,7 @@ def nominal_report_interval_s(sog_m_s: _F8, class_b: NDArray[np.bool_],
     nav_status : ndarray of int
         Navigational status; 1 (at anchor) and 5 (moored) report every 3 min.
     """
-    sog_kn = np.nan_to_num(np.asarray(sog_m_s, dtype=np.float64) / _KN, nan=10.0)
+    sog_kn = np.nan_to_num(np.asarray(sog_m_s, dtype=np.float64) / KNOT_M_S, nan=10.0)
     a = np.where(sog_kn > 23.0, 2.0, np.where(sog_kn > 14.0, 6.0, 10.0))
     a = np.where((sog_kn <= 3.0) & ((nav_status == 1) | (nav_status == 5)), 180.0, a)
     b = np.where(sog_kn > 2.0, 30.0, 180.0)

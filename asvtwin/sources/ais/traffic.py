@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 
 from asvtwin.errors import ParameterError
 from asvtwin.geo import Scene, default_scene
+from asvtwin.units import wrap_angle
 from asvtwin.vessel import BatchSimulator, cybership2, froude_scale
 from asvtwin.vessel.params import RHO_SEA, ActuatorParams, VesselParams
 
@@ -145,10 +146,6 @@ def default_fleet() -> tuple[TrafficVessel, ...]:
     )
 
 
-def _wrap(a: _F8) -> _F8:
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
-
-
 class FjordTraffic:
     """The fleet stepped together by the vessel model, guided along its routes.
 
@@ -259,7 +256,7 @@ class FjordTraffic:
         Xu, Xuu, Xuuu = self._X.T
         tau_u = -(Xu * u_d + Xuu * u_d * np.abs(u_d) + Xuuu * u_d**3) + self._ku * (u_d - u)
         tau_u = np.where(moored, 0.0, tau_u)
-        e_psi = _wrap(chi_d - x[:, 2])
+        e_psi = wrap_angle(chi_d - x[:, 2])
         r_d = np.clip(self._wn * e_psi, -self._r_max, self._r_max)
         tau_r = self._kr * (r_d - r) - self._Nr * r_d
         self.nav_status = np.where(moored & (np.hypot(x[:, 3], x[:, 4]) < 0.3), 5, 0)
@@ -287,5 +284,5 @@ class FjordTraffic:
         c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
         vn = c * x[:, 3] - s * x[:, 4]  # eq. (η̇ = R(ψ) ν)
         ve = s * x[:, 3] + c * x[:, 4]
-        return (x[:, :2].copy(), np.hypot(vn, ve), np.arctan2(ve, vn), _wrap(x[:, 2].copy()),
+        return (x[:, :2].copy(), np.hypot(vn, ve), np.arctan2(ve, vn), np.asarray(wrap_angle(x[:, 2])),
                 x[:, 5].copy())
