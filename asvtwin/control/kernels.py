@@ -2,8 +2,8 @@
 
 :func:`rollout` re-simulates a plan on *the solver's* model, the CasADi expression of
 :func:`asvtwin.control.backends.ocp.continuous_dynamics` (RK4 per stage, |·| smoothed as
-√(z² + ε), ε = :data:`~asvtwin.control.backends.ocp.SMOOTH_ABS_EPS`), written out again
-here term for term. The vessel's own kernels (:mod:`asvtwin.vessel.kernels`) use the
+√(z² + ε), ε = :data:`~asvtwin.control.backends.ocp.SMOOTH_ABS_EPS`): the vessel kernel's
+C(ν)ν + D(ν)ν given those smoothed magnitudes. The vessel's own simulation kernels (:mod:`asvtwin.vessel.kernels`) use the
 exact |·|, so they are *not* the planning model and are not used for certification;
 ``tests/control/test_kernels.py`` holds this kernel to the CasADi function to 1e-12.
 Coefficients arrive as ``VesselParams.packed()`` (layout ``PACKED_FIELDS``: M⁻¹ row-major,
@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from asvtwin.control.backends.ocp import SMOOTH_ABS_EPS
+from asvtwin.vessel.kernels import hydrodynamic_force_abs
 
 __all__ = ["certify", "obstacle_margins", "rollout"]
 
@@ -34,18 +35,11 @@ def _f(psi, u, v, r, tu, tv, tr, p):  # pragma: no cover - compiled
     au = math.sqrt(u * u + _EPS)
     av = math.sqrt(v * v + _EPS)
     ar = math.sqrt(r * r + _EPS)
-    # D(ν) entries (REFERENCE §1), smoothed |·| as in ocp.continuous_dynamics
-    d11 = -p[12] - p[13] * au - p[14] * u * u
-    d22 = -p[15] - p[16] * av - p[17] * ar
-    d23 = -p[18] - p[19] * av - p[20] * ar
-    d32 = -p[21] - p[22] * av - p[23] * ar
-    d33 = -p[24] - p[25] * av - p[26] * ar
-    # C(ν) skew-symmetric: c13 = -(M22 v + M23 r), c23 = M11 u
-    c13 = -(p[10] * v + p[11] * r)
-    c23 = p[9] * u
-    f0 = tu - c13 * r - d11 * u
-    f1 = tv - c23 * r - (d22 * v + d23 * r)
-    f2 = tr - (-c13 * u - c23 * v) - (d32 * v + d33 * r)
+    # C(ν)ν + D(ν)ν of the vessel model, with |·| smoothed as in ocp.continuous_dynamics
+    n0, n1, n2 = hydrodynamic_force_abs(u, v, r, au, av, ar, p)
+    f0 = tu - n0
+    f1 = tv - n1
+    f2 = tr - n2
     c = math.cos(psi)
     s = math.sin(psi)
     return (c * u - s * v, s * u + c * v, r,

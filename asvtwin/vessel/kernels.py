@@ -16,15 +16,26 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["actuator_batch", "rhs_batch", "rk4_batch", "step_batch"]
+__all__ = [
+    "actuator_batch",
+    "hydrodynamic_force",
+    "hydrodynamic_force_abs",
+    "rhs_batch",
+    "rk4_batch",
+    "step_batch",
+]
 
 
 @njit(cache=True, inline="always")
 def hydrodynamic_force(u, v, r, p):  # pragma: no cover - compiled
     """n(ν) = C(ν)ν + D(ν)ν from packed parameters (layout ``PACKED_FIELDS``)."""
-    au = abs(u)
-    av = abs(v)
-    ar = abs(r)
+    return hydrodynamic_force_abs(u, v, r, abs(u), abs(v), abs(r), p)
+
+
+@njit(cache=True, inline="always")
+def hydrodynamic_force_abs(u, v, r, au, av, ar, p):  # pragma: no cover - compiled
+    """n(ν) with the magnitudes |u|, |v|, |r| given by the caller (the safety filter's
+    planning model passes smoothed ones, √(z² + ε))."""
     M11 = p[9]
     M22 = p[10]
     M23 = p[11]
