@@ -15,8 +15,10 @@ $(BIN)/python:
 # The acados extra vendors a slim casadi over the official one's files: reinstall the
 # official wheel afterwards and check IPOPT is there (docs/psf.md).
 CASADI ?= casadi==3.8.2
+# `all` holds every extra (rl with the CPU torch, ray, sweep, test, acados): installing it
+# also proves the extras resolve together.
 $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet -e '.[test,acados]'
+	$(BIN)/python -m pip install --quiet -e '.[all]'
 	$(BIN)/python -m pip install --quiet --force-reinstall --no-deps '$(CASADI)'
 	$(BIN)/python -c "import casadi; assert casadi.has_nlpsol('ipopt'), 'casadi lost IPOPT'"
 	touch $@

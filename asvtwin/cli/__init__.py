@@ -20,7 +20,10 @@ from asvtwin import __version__
 __all__ = ["build_parser", "main"]
 
 #: Modules of this package that register sub-commands, in help order.
-COMMAND_MODULES = ("sim", "ais", "weather", "figures", "psf", "observer")
+COMMAND_MODULES = (
+    "run", "scenario", "replay", "sim", "ais", "weather", "figures", "psf", "observer",
+    "train", "study", "whatif", "sweep",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
