@@ -12,6 +12,7 @@ __all__ = [
     "ConfigError",
     "MissingExtraError",
     "ParameterError",
+    "ScenarioError",
     "SceneError",
     "SolverError",
     "SourceError",
@@ -33,6 +34,10 @@ class StateError(AsvTwinError, ValueError):
 
 class SceneError(AsvTwinError, ValueError):
     """A scene file is malformed: names the file, the field and the allowed range."""
+
+
+class ScenarioError(AsvTwinError, ValueError):
+    """A scenario is malformed: names the file, the line, the field and the allowed range."""
 
 
 class ConfigError(AsvTwinError, ValueError):
