@@ -1,0 +1,167 @@
+"""Fan-out of snapshots to WebSocket clients without letting a slow client slow anyone.
+
+One producer task polls the feed for a new :class:`~asvtwin.server.feed.Frame` and offers
+it to every client. Each client has its own sender task fed by a queue of length one where
+the newest frame replaces the one not yet sent, so a client that reads slowly simply gets
+fewer frames, and the producer never awaits a client. A blocked ``send`` (a client that
+stopped reading: uvicorn's ``send`` blocks once the socket buffers fill, ~2.7 MiB) is
+bounded by ``send_timeout_s``; on timeout the client's tasks are cancelled rather than
+awaiting ``close()``, which would block the same way. Events (the snapshot's ``events``)
+go to each client through a separate small queue, so a skipped frame loses no event.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import itertools
+import logging
+import time
+from collections import Counter, deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import orjson
+
+from asvtwin.server.api import ClientOptions
+from asvtwin.server.feed import Frame, SnapshotFeed
+
+__all__ = ["Client", "Hub"]
+
+log = logging.getLogger(__name__)
+_ids = itertools.count(1)
+
+
+@dataclass(eq=False)
+class Client:
+    """One WebSocket client: its options, its one-slot frame queue and counters."""
+
+    options: ClientOptions
+    id: int = field(default_factory=lambda: next(_ids))
+    queue: asyncio.Queue[Frame] = field(default_factory=lambda: asyncio.Queue(maxsize=1))
+    events: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=256))
+    wake: asyncio.Event = field(default_factory=asyncio.Event)
+    sent: int = 0
+    replaced: int = 0
+    bytes_sent: int = 0
+
+    def offer(self, frame: Frame) -> None:
+        """Put ``frame`` in the queue, replacing a frame not yet sent (never blocks)."""
+        if self.queue.full():
+            with contextlib.suppress(asyncio.QueueEmpty):
+                self.queue.get_nowait()
+                self.replaced += 1
+        self.queue.put_nowait(frame)
+        if frame.events:
+            self.events.append({"type": "events", "seq": frame.seq, "t_s": frame.t_s,
+                                "events": list(frame.events)})
+            self.wake.set()
+
+
+class Hub:
+    """The set of connected clients, the producer task and the counters."""
+
+    def __init__(self, feed: SnapshotFeed, *, poll_s: float = 1 / 60, send_timeout_s: float = 2.0
+                 ) -> None:
+        self.feed = feed
+        self.poll_s = poll_s
+        self.send_timeout_s = send_timeout_s
+        self.clients: set[Client] = set()
+        self.counters: Counter[str] = Counter()
+        self.last_frame: Frame | None = None
+        self._task: asyncio.Task[None] | None = None
+        self.producer_lag_ms: deque[float] = deque(maxlen=1000)
+
+    # ------------------------------------------------------------- producer
+    async def _produce(self) -> None:
+        last_seq: int | None = None
+        last_t: float | None = None
+        while True:
+            t0 = time.perf_counter()
+            try:
+                fr = self.feed.frame()
+            except Exception:  # noqa: BLE001 - a feed bug must not kill the server; logged once per kind
+                self.counters["feed_errors"] += 1
+                if self.counters["feed_errors"] == 1:
+                    log.exception("the feed failed to give a frame")
+                fr = None
+            if fr is not None and (fr.seq != last_seq or fr.t_s != last_t):
+                last_seq, last_t = fr.seq, fr.t_s
+                self.last_frame = fr
+                self.counters["frames"] += 1
+                for c in self.clients:
+                    c.offer(fr)
+            self.producer_lag_ms.append((time.perf_counter() - t0) * 1e3)
+            await asyncio.sleep(self.poll_s)
+
+    def start(self) -> None:
+        if self._task is None:
+            self._task = asyncio.get_running_loop().create_task(self._produce(), name="producer")
+
+    async def stop(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+            self._task = None
+
+    # ------------------------------------------------------------- clients
+    def add(self, options: ClientOptions) -> Client:
+        c = Client(options)
+        self.clients.add(c)
+        self.counters["ws_connected"] += 1
+        if self.last_frame is not None:
+            c.offer(self.last_frame)
+        return c
+
+    def remove(self, c: Client) -> None:
+        self.clients.discard(c)
+        self.counters["ws_closed"] += 1
+
+    async def send_loop(self, ws: Any, c: Client) -> None:
+        """Send the newest frame at most ``rate_hz`` times per second; events first."""
+        next_t = time.monotonic()
+        while True:
+            get = asyncio.ensure_future(c.queue.get())
+            wake = asyncio.ensure_future(c.wake.wait())
+            try:
+                await asyncio.wait({get, wake}, return_when=asyncio.FIRST_COMPLETED)
+            finally:
+                for t in (get, wake):
+                    t.cancel()
+            frame = get.result() if get.done() and not get.cancelled() else None
+            c.wake.clear()
+            while c.events:
+                await self._send(ws, c, orjson.dumps(c.events.popleft()), text=True)
+            if frame is None:
+                continue
+            data = frame.msgpack() if c.options.format == "msgpack" else frame.data
+            await self._send(ws, c, data, text=False)
+            c.sent += 1
+            self.counters["frames_sent"] += 1
+            next_t = max(next_t + 1.0 / c.options.rate_hz, time.monotonic())
+            await asyncio.sleep(next_t - time.monotonic())
+
+    async def _send(self, ws: Any, c: Client, data: bytes, *, text: bool) -> None:
+        try:
+            if text:
+                await asyncio.wait_for(ws.send_text(data.decode()), self.send_timeout_s)
+            else:
+                await asyncio.wait_for(ws.send_bytes(data), self.send_timeout_s)
+        except TimeoutError:
+            self.counters["ws_send_timeouts"] += 1
+            raise
+        c.bytes_sent += len(data)
+        self.counters["bytes_sent"] += len(data)
+
+    def stats(self) -> dict[str, Any]:
+        lag = sorted(self.producer_lag_ms)
+        return {
+            "clients": len(self.clients),
+            "counters": dict(self.counters),
+            "per_client": [{"id": c.id, "rate_hz": c.options.rate_hz, "format": c.options.format,
+                            "sent": c.sent, "replaced": c.replaced, "bytes_sent": c.bytes_sent}
+                           for c in self.clients],
+            "producer_ms_median": lag[len(lag) // 2] if lag else None,
+            "last_seq": self.last_frame.seq if self.last_frame else None,
+        }
