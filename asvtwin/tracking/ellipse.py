@@ -38,13 +38,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from asvtwin.errors import ParameterError, StateError
 from asvtwin.tracking.smallmat import (
-    chol3_into,
+    eig_sym3_into,
     inv3_into,
-    inv_lower3_into,
     inv_small,
     mm_into,
     mv,
-    top_eig_sym3_into,
 )
 
 __all__ = [
@@ -113,6 +111,74 @@ def _distinct_finite(p, xs):  # type: ignore[no-untyped-def]
     if keep.all():
         return p
     return p[keep]
+
+
+#: Relative size of an eigenvalue of the reduced scatter below which it counts as zero
+#: (an exact conic through the points); rounding leaves ~1e-15.
+_SINGULAR = 1e-10
+#: A fitted semi-major axis beyond this many RMS radii of the points is not determined by
+#: them (two parallel lines, a nearly straight arc): reported as no ellipse.
+_MAX_AXIS_RATIO = 100.0
+
+
+@njit(cache=True)
+def _hf_deflated(T, C1, v0, v1, v2):  # type: ignore[no-untyped-def]
+    """Ellipse optimum of ``T a = λ C1 a`` on the plane ``(C1 v)ᵀ a = 0`` (v: the exact
+    non-elliptic conic). Returns (ok, a1)."""
+    g0, g1, g2 = C1[0, 0] * v0 + C1[0, 1] * v1 + C1[0, 2] * v2, C1[1, 0] * v0 + C1[1, 1] * v1 + C1[1, 2] * v2, \
+        C1[2, 0] * v0 + C1[2, 1] * v1 + C1[2, 2] * v2
+    gn = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+    g0, g1, g2 = g0 / gn, g1 / gn, g2 / gn
+    # orthonormal basis (p, q) of the plane g^⊥: p from the axis least aligned with g
+    if abs(g0) <= abs(g1) and abs(g0) <= abs(g2):
+        e0, e1, e2 = 1.0, 0.0, 0.0
+    elif abs(g1) <= abs(g2):
+        e0, e1, e2 = 0.0, 1.0, 0.0
+    else:
+        e0, e1, e2 = 0.0, 0.0, 1.0
+    d = e0 * g0 + e1 * g1 + e2 * g2
+    p0, p1, p2 = e0 - d * g0, e1 - d * g1, e2 - d * g2
+    pn = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+    p0, p1, p2 = p0 / pn, p1 / pn, p2 / pn
+    q0, q1, q2 = g1 * p2 - g2 * p1, g2 * p0 - g0 * p2, g0 * p1 - g1 * p0
+    P = ((p0, p1, p2), (q0, q1, q2))
+    A = np.zeros((2, 2))
+    C = np.zeros((2, 2))
+    for i in range(2):
+        for j in range(2):
+            for k in range(3):
+                for m in range(3):
+                    A[i, j] += P[i][k] * T[k, m] * P[j][m]
+                    C[i, j] += P[i][k] * C1[k, m] * P[j][m]
+    # A c = λ C c with A > 0: A = L Lᵀ, (L⁻¹ C L⁻ᵀ) y = (1/λ) y, the positive eigenvalue
+    if not (A[0, 0] > 0.0):
+        return False, (0.0, 0.0, 0.0)
+    l00 = np.sqrt(A[0, 0])
+    l10 = A[1, 0] / l00
+    r = A[1, 1] - l10 * l10
+    if not r > 0.0:
+        return False, (0.0, 0.0, 0.0)
+    l11 = np.sqrt(r)
+    # Li = L⁻¹
+    i00, i10, i11 = 1.0 / l00, -l10 / (l00 * l11), 1.0 / l11
+    w00 = i00 * i00 * C[0, 0]
+    w01 = i00 * (i10 * C[0, 0] + i11 * C[0, 1])
+    w11 = i10 * i10 * C[0, 0] + 2.0 * i10 * i11 * C[0, 1] + i11 * i11 * C[1, 1]
+    tr, det = w00 + w11, w00 * w11 - w01 * w01
+    mu = 0.5 * tr + np.sqrt(max(0.25 * tr * tr - det, 0.0))
+    if not mu > 0.0:
+        return False, (0.0, 0.0, 0.0)
+    # eigenvector of [[w00, w01], [w01, w11]] for mu (the better-conditioned row)
+    if abs(w00 - mu) + abs(w01) >= abs(w11 - mu) + abs(w01):
+        y0, y1 = -w01, w00 - mu
+    else:
+        y0, y1 = w11 - mu, -w01
+    if y0 == 0.0 and y1 == 0.0:
+        y0 = 1.0
+    # c = L⁻ᵀ y
+    c1 = i11 * y1
+    c0 = i00 * y0 + i10 * y1
+    return True, (c0 * p0 + c1 * q0, c0 * p1 + c1 * q1, c0 * p2 + c1 * q2)
 
 
 @njit(cache=True)
@@ -198,8 +264,7 @@ def _fit_one(p, method, C1, out, x, y, ang, ws, v3):  # type: ignore[no-untyped-
     S3[1, 0], S3[1, 1], S3[1, 2] = m11, m02, m01
     S3[2, 0], S3[2, 1], S3[2, 2] = m10, m01, m00
     if method == 0:
-        S3i, S2T, Tm, M, T, L, Li, LiT, W = ws[3], ws[4], ws[5], ws[6], ws[7], ws[8], ws[9], ws[10], ws[11]
-        G0 = M  # M is free again once T is formed
+        S3i, S2T, Tm, M, T, W = ws[3], ws[4], ws[5], ws[6], ws[7], ws[10]
         inv3_into(S3, S3i)
         for i in range(3):
             for j in range(3):
@@ -215,28 +280,46 @@ def _fit_one(p, method, C1, out, x, y, ang, ws, v3):  # type: ignore[no-untyped-
         for i in range(3):
             for j in range(3):
                 T[i, j] = 0.5 * (M[i, j] + M[j, i])  # reduced scatter, symmetric PSD
-        reg = 1e-13 * (T[0, 0] + T[1, 1] + T[2, 2]) + 1e-300  # exact conics make T singular
-        for i in range(3):
-            T[i, i] += reg
-        if not chol3_into(T, L):
-            out[0] = 3
+        # eigen-decomposition of T (Jacobi; no regulariser: it moved the optimum of exact
+        # 5-point conics, the issue of a 1e-13 ridge with a Cholesky factor)
+        tw, V = ws[8], ws[9]
+        eig_sym3_into(T, v3, V, W)
+        t0, t1, t2 = max(v3[0], 0.0), max(v3[1], 0.0), v3[2]
+        tw[0, 0], tw[0, 1], tw[0, 2] = t0, t1, t2
+        if not t2 > 0.0 or t1 <= _SINGULAR * t2:
+            out[0] = 1  # a pencil of conics fits exactly: < 5 points in general position
             return
-        inv_lower3_into(L, Li)
-        for i in range(3):
-            for j in range(3):
-                LiT[i, j] = Li[j, i]
-        mm_into(Li, C1, W)
-        mm_into(W, LiT, G0)  # L^-1 C1 L^-T: one positive eigenvalue
-        for i in range(3):
-            for j in range(3):
-                W[i, j] = 0.5 * (G0[i, j] + G0[j, i])
-        mu = top_eig_sym3_into(W, v3)
-        if not mu > 0.0:  # no eigenvector with 4ac - b^2 > 0
-            out[0] = 3
-            return
-        a1 = (LiT[0, 0] * v3[0] + LiT[0, 1] * v3[1] + LiT[0, 2] * v3[2],
-              LiT[1, 0] * v3[0] + LiT[1, 1] * v3[1] + LiT[1, 2] * v3[2],
-              LiT[2, 0] * v3[0] + LiT[2, 1] * v3[1] + LiT[2, 2] * v3[2])
+        if t0 <= _SINGULAR * t2:
+            # one conic passes through the points exactly (the null vector v0 of T)
+            v00, v01, v02 = V[0, 0], V[1, 0], V[2, 0]
+            if 4.0 * v00 * v02 - v01 * v01 > 0.0:
+                a1 = (v00, v01, v02)  # an exact ellipse: the optimum (λ = 0)
+            else:
+                # a hyperbola or parabola: the ellipse optimum is C1-orthogonal to v0
+                # (v0ᵀ T a = λ v0ᵀ C1 a = 0), so solve the 2×2 pencil on that plane
+                ok, a1 = _hf_deflated(T, C1, v00, v01, v02)
+                if not ok:
+                    out[0] = 3
+                    return
+        else:
+            # T = V diag(t) Vᵀ, a1 = V diag(t)^-1/2 y:  W y = (1/λ) y with
+            # W = diag(t)^-1/2 Vᵀ C1 V diag(t)^-1/2 (one positive eigenvalue: the ellipse)
+            for i in range(3):
+                for j in range(3):
+                    acc = 0.0
+                    for k in range(3):
+                        for m in range(3):
+                            acc += V[k, i] * C1[k, m] * V[m, j]
+                    M[i, j] = acc / np.sqrt(tw[0, i] * tw[0, j])
+            U = ws[11]
+            eig_sym3_into(M, v3, U, W)
+            if not v3[2] > 0.0:  # no eigenvector with 4ac - b^2 > 0
+                out[0] = 3
+                return
+            y0, y1, y2 = U[0, 2] / np.sqrt(t0), U[1, 2] / np.sqrt(t1), U[2, 2] / np.sqrt(t2)
+            a1 = (V[0, 0] * y0 + V[0, 1] * y1 + V[0, 2] * y2,
+                  V[1, 0] * y0 + V[1, 1] * y1 + V[1, 2] * y2,
+                  V[2, 0] * y0 + V[2, 1] * y1 + V[2, 2] * y2)
         a, b, c = a1
         d = Tm[0, 0] * a + Tm[0, 1] * b + Tm[0, 2] * c
         e = Tm[1, 0] * a + Tm[1, 1] * b + Tm[1, 2] * c
@@ -266,6 +349,9 @@ def _fit_one(p, method, C1, out, x, y, ang, ws, v3):  # type: ignore[no-untyped-
         out[0] = 3  # imaginary ellipse
         return
     ax_major, ax_minor = np.sqrt(-f0 / l1), np.sqrt(-f0 / l2)
+    if not ax_major <= _MAX_AXIS_RATIO:  # the points have unit RMS radius here
+        out[0] = 3  # unbounded: the data do not determine the ellipse
+        return
     theta = 0.5 * np.arctan2(b, a - c) + 0.5 * np.pi  # direction of the smaller eigenvalue
     theta = (theta + 0.5 * np.pi) % np.pi - 0.5 * np.pi
     # quality: arc coverage about the fitted centre (in the ellipse's own parameter),

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["chol3_into", "inv3_into", "inv_into", "inv_lower3_into", "inv_small", "mm", "mm_into", "mv",
-           "top_eig_sym3_into"]
+__all__ = ["chol3_into", "eig_sym3_into", "inv3_into", "inv_into", "inv_lower3_into", "inv_small", "mm", "mm_into",
+           "mv", "top_eig_sym3_into"]
 
 
 @njit(cache=True)
@@ -191,3 +191,54 @@ def top_eig_sym3_into(G, v):  # type: ignore[no-untyped-def]
     for i in range(3):
         v[i] /= nrm
     return mu
+
+
+@njit(cache=True)
+def eig_sym3_into(A, w, V, B):  # type: ignore[no-untyped-def]
+    """All eigenpairs of a symmetric 3×3 matrix by cyclic Jacobi rotations.
+
+    Eigenvalues ascending into ``w`` (3,), unit eigenvectors in the columns of ``V``
+    (3, 3); ``B`` (3, 3) is scratch. Jacobi is accurate to ~eps·‖A‖ in every eigenpair
+    (no cancellation of a closed-form cubic), which the ellipse fit needs when the
+    reduced scatter is nearly singular (five points on a conic).
+    """
+    for i in range(3):
+        for j in range(3):
+            B[i, j] = 0.5 * (A[i, j] + A[j, i])
+            V[i, j] = 1.0 if i == j else 0.0
+    for _sweep in range(50):
+        off = B[0, 1] * B[0, 1] + B[0, 2] * B[0, 2] + B[1, 2] * B[1, 2]
+        diag = B[0, 0] * B[0, 0] + B[1, 1] * B[1, 1] + B[2, 2] * B[2, 2]
+        if off <= 1e-36 * diag or off == 0.0:
+            break
+        for p, q in ((0, 1), (0, 2), (1, 2)):
+            apq = B[p, q]
+            if apq == 0.0:
+                continue
+            # rotation angle that zeroes B[p, q] (Golub & Van Loan, Algorithm 8.4.1)
+            tau = (B[q, q] - B[p, p]) / (2.0 * apq)
+            t = (1.0 if tau >= 0.0 else -1.0) / (abs(tau) + np.sqrt(1.0 + tau * tau))
+            c = 1.0 / np.sqrt(1.0 + t * t)
+            s = t * c
+            for k in range(3):  # B <- B J
+                bkp, bkq = B[k, p], B[k, q]
+                B[k, p] = c * bkp - s * bkq
+                B[k, q] = s * bkp + c * bkq
+            for k in range(3):  # B <- Jᵀ B
+                bpk, bqk = B[p, k], B[q, k]
+                B[p, k] = c * bpk - s * bqk
+                B[q, k] = s * bpk + c * bqk
+            for k in range(3):  # V <- V J
+                vkp, vkq = V[k, p], V[k, q]
+                V[k, p] = c * vkp - s * vkq
+                V[k, q] = s * vkp + c * vkq
+    for i in range(3):
+        w[i] = B[i, i]
+    # sort ascending (3 elements: insertion sort, columns of V along)
+    for i in range(1, 3):
+        j = i
+        while j > 0 and w[j - 1] > w[j]:
+            w[j - 1], w[j] = w[j], w[j - 1]
+            for k in range(3):
+                V[k, j - 1], V[k, j] = V[k, j], V[k, j - 1]
+            j -= 1
