@@ -1,0 +1,149 @@
+"""The simulated targets' AIS transponders: ground truth in, tagged NMEA lines out.
+
+Each target with an AIS class broadcasts what its transponder would: a position report
+(class A: type 1, every fourth a type 3; class B: type 18) at the ITU-R M.1371-5 nominal
+interval for its speed (:func:`asvtwin.sources.ais.nominal_report_interval_s`: 10 s under
+14 kn, 6 s to 23 kn, 2 s above for class A; 30 s for class B), and its static data every
+6 minutes (type 5, or type 24 parts A and B), each line behind an IEC 61162-450 tag block
+as the Norwegian Coastal Administration's feed sends them. The lines are the *only* way the
+twin learns about these targets from AIS: they go through the real
+:class:`~asvtwin.sources.ais.AisPipeline` like a live feed.
+
+Which transponders are due is decided for all targets at once (arrays); only the due
+ones are encoded (pyais), a handful per second even with fifty targets.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from asvtwin.geo import LocalFrame
+from asvtwin.sources.ais import (
+    AisReport,
+    AisStatic,
+    encode_report,
+    encode_static,
+    nominal_report_interval_s,
+    tag_block,
+)
+from asvtwin.units import wrap_angle
+
+__all__ = ["STATIC_INTERVAL_S", "Transponders"]
+
+#: Static and voyage data interval [s] (ITU-R M.1371-5: every 6 min).
+STATIC_INTERVAL_S = 360.0
+
+
+class Transponders:
+    """AIS transponders of n simulated vessels.
+
+    Parameters
+    ----------
+    mmsi : sequence of int
+        MMSI per vessel; a vessel with class None sends nothing.
+    ais_class : sequence of {"A", "B", None}
+        Transponder class per vessel.
+    names, ship_types, length_m, beam_m : sequences
+        Static data per vessel.
+    frame : LocalFrame
+        The scene's tangent plane (NED -> WGS84).
+    epoch_unix_s : float
+        UNIX time of simulation time 0 [s].
+    rng : numpy.random.Generator
+        Reporting phases and radio channels.
+    station : str
+        Receiving base station of the tag blocks.
+    """
+
+    def __init__(self, mmsi: Sequence[int | None], ais_class: Sequence[str | None],
+                 names: Sequence[str], ship_types: Sequence[int], length_m: Sequence[float],
+                 beam_m: Sequence[float], *, frame: LocalFrame, epoch_unix_s: float,
+                 rng: np.random.Generator, station: str = "2579999") -> None:
+        self.frame = frame
+        self.epoch_unix_s = float(epoch_unix_s)
+        self.rng = rng
+        self.station = station
+        self.alive = True
+        self._mmsi: list[int] = []
+        self._class_b = np.zeros(0, bool)
+        self._sends = np.zeros(0, bool)
+        self._names: list[str] = []
+        self._types: list[int] = []
+        self._dims: list[tuple[float, float]] = []
+        self._next = np.zeros(0)
+        self._next_static = np.zeros(0)
+        self._count = np.zeros(0, np.int64)
+        self._seq = 0
+        self.add(mmsi, ais_class, names, ship_types, length_m, beam_m, t_s=0.0)
+
+    def add(self, mmsi: Sequence[int | None], ais_class: Sequence[str | None],
+            names: Sequence[str], ship_types: Sequence[int], length_m: Sequence[float],
+            beam_m: Sequence[float], *, t_s: float) -> None:
+        """Append vessels (their first report falls within one interval of ``t_s``)."""
+        k = len(mmsi)
+        self._mmsi += [int(m) if m is not None else -1 for m in mmsi]
+        self._class_b = np.concatenate([self._class_b, [c == "B" for c in ais_class]])
+        self._sends = np.concatenate([self._sends, [c is not None and m is not None
+                                                    for c, m in zip(ais_class, mmsi, strict=True)]])
+        self._names += list(names)
+        self._types += [int(t) for t in ship_types]
+        self._dims += [(float(a), float(b)) for a, b in zip(length_m, beam_m, strict=True)]
+        self._next = np.concatenate([self._next, t_s + np.floor(self.rng.uniform(0.0, 10.0, k))])
+        self._next_static = np.concatenate(
+            [self._next_static, t_s + np.floor(self.rng.uniform(0.0, 30.0, k))])
+        self._count = np.concatenate([self._count, np.zeros(k, np.int64)])
+
+    def _tagged(self, t_unix: float, sentences: list[str]) -> list[str]:
+        tag = tag_block(station=self.station, t_unix_s=t_unix)
+        return [tag + s for s in sentences]
+
+    def step(self, t_s: float, states: NDArray[np.float64]) -> list[str]:
+        """The lines broadcast at ``t_s`` by the vessels in ``states`` (n, 6) (truth)."""
+        if not self.alive or not self._sends.any():
+            return []
+        due = np.flatnonzero(self._sends & (self._next <= t_s + 1e-9))
+        due_static = np.flatnonzero(self._sends & (self._next_static <= t_s + 1e-9))
+        if not (due.size or due_static.size):
+            return []
+        t_unix = math.floor(self.epoch_unix_s + t_s)
+        lines: list[str] = []
+        if due.size:
+            x = states[due]
+            c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
+            vn = c * x[:, 3] - s * x[:, 4]   # eq. η̇ = R(ψ) ν: velocity over ground
+            ve = s * x[:, 3] + c * x[:, 4]
+            sog = np.hypot(vn, ve)
+            cog = np.where(sog > 1e-3, np.arctan2(ve, vn), x[:, 2])
+            lat, lon = self.frame.to_wgs84(x[:, 0], x[:, 1])
+            nav = np.zeros(due.size, np.int64)
+            interval = nominal_report_interval_s(sog, self._class_b[due], nav)
+            for j, i in enumerate(due.tolist()):
+                b = bool(self._class_b[i])
+                msg_type = 18 if b else (3 if self._count[i] % 4 == 3 else 1)
+                rep = AisReport(
+                    mmsi=self._mmsi[i], t_unix_s=float(t_unix), msg_type=msg_type,
+                    north_m=float(x[j, 0]), east_m=float(x[j, 1]), lat_deg=float(lat[j]),
+                    lon_deg=float(lon[j]), sog_m_s=float(sog[j]),
+                    cog_rad=float(wrap_angle(cog[j])), heading_rad=float(x[j, 2] % (2 * math.pi)),
+                    rot_rad_s=None if b else float(x[j, 5]), nav_status=None if b else 0)
+                ch = "AB"[int(self.rng.integers(2))]
+                lines += self._tagged(t_unix, [encode_report(rep, channel=ch)])
+                self._count[i] += 1
+                self._next[i] = t_s + float(interval[j])
+        for i in due_static.tolist():
+            L, B = self._dims[i]
+            st = AisStatic(
+                mmsi=self._mmsi[i], t_unix_s=float(t_unix), msg_type=24 if self._class_b[i] else 5,
+                name=self._names[i][:20].upper(), callsign=None, ship_type=self._types[i],
+                to_bow_m=round(0.5 * L), to_stern_m=round(0.5 * L),
+                to_port_m=round(0.5 * B), to_starboard_m=round(0.5 * B))
+            for msg in encode_static(st, seq_id=self._seq % 10,
+                                     channel="AB"[int(self.rng.integers(2))]):
+                lines += self._tagged(t_unix, msg)
+            self._seq += 1
+            self._next_static[i] = t_s + STATIC_INTERVAL_S
+        return lines
