@@ -139,9 +139,8 @@ def _listen(args: argparse.Namespace) -> int:
                                  speed=None if args.speed <= 0 else args.speed, loop=args.loop,
                                  seed=args.seed)
         store = SqliteHistory(args.db) if args.db else None
-    except AsvTwinError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        return 2
+    except AsvTwinError:
+        raise  # one line on stderr, exit 2: asvtwin.cli.main
     registry = TargetRegistry(epoch_unix_s=0.0)  # times shown are UNIX seconds
 
     def now() -> float:
@@ -211,8 +210,7 @@ def _stats(args: argparse.Namespace) -> int:
 
     path = Path(args.file)
     if not path.is_file():
-        Console().print(f"[red]error:[/red] {args.file!r} is not a readable file")
-        return 2
+        raise FileNotFoundError(2, "not a readable file", args.file)
     pipeline = AisPipeline()
     mmsis: set[int] = set()
     t_lo, t_hi = math.inf, -math.inf
@@ -282,8 +280,7 @@ def _history(args: argparse.Namespace) -> int:
     from asvtwin.units import m_s_to_knots
 
     if not Path(args.db).is_file():
-        Console().print(f"[red]error:[/red] history database {args.db!r} does not exist")
-        return 2
+        raise FileNotFoundError(2, "history database does not exist", args.db)
     from asvtwin.errors import AsvTwinError
 
     try:
@@ -291,9 +288,8 @@ def _history(args: argparse.Namespace) -> int:
             reports = store.query_reports(default_scene().frame, mmsi=args.mmsi,
                                           since_unix_s=args.since, until_unix_s=args.until,
                                           limit=args.limit)
-    except AsvTwinError as exc:
-        Console().print(f"[red]error:[/red] {exc}")
-        return 1
+    except AsvTwinError:
+        raise  # one line on stderr, exit 2: asvtwin.cli.main
     if args.json:
         for r in reports:
             print(json.dumps({k: getattr(r, k) for k in r.__slots__}))

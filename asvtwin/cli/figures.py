@@ -1,6 +1,6 @@
 """``asvtwin figures <area>``: reproduce the paper's figures as PNG files.
 
-Areas register here; each writes its PNGs into ``--out`` (default ``figures/<area>``).
+Areas register here; each writes its PNGs into ``--out`` (default ``out/figures/<area>``).
 """
 
 from __future__ import annotations
@@ -9,13 +9,15 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from asvtwin.cli.argtypes import out_dir
+
 __all__ = ["register"]
 
 
 def _tracking(args: argparse.Namespace) -> int:
-    from asvtwin.tracking.figures import make_tracking_figures
+    from asvtwin.plots.tracking import make_tracking_figures
 
-    out = Path(args.out) if args.out else Path("figures") / "tracking"
+    out = Path(args.out) if args.out else out_dir("figures") / "tracking"
     for path in make_tracking_figures(out, seed=args.seed):
         print(path)
     return 0
@@ -30,6 +32,6 @@ def register(subparsers: Any) -> None:
     tr = areas.add_parser("tracking", help="ellipse fits, multi-target LiDAR, prediction cone, near-coast scene",
                           description="Rectangle fit without/with noise, multi-target ellipses over LiDAR points, "
                                       "a predicted path with its widening 2-sigma cone, and a near-coast scene.")
-    tr.add_argument("--out", metavar="DIR", default=None, help="output directory (default: figures/tracking)")
+    tr.add_argument("--out", metavar="DIR", default=None, help="output directory (default: out/figures/tracking)")
     tr.add_argument("--seed", type=int, default=0, help="random seed of the simulated scenes (default: 0)")
     tr.set_defaults(func=_tracking)

@@ -13,6 +13,8 @@ import csv
 import logging
 from pathlib import Path
 
+from asvtwin.cli.argtypes import out_dir, positive_float
+
 __all__ = ["register"]
 
 log = logging.getLogger(__name__)
@@ -25,11 +27,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     d = sub.add_parser("demo", help="closed-loop demo: plot and δ_u CSV",
                        description="Run a naive full-thrust controller at obstacles with "
                                    "and without the safety filter; write a PNG and a CSV.")
-    d.add_argument("--out", type=Path, default=Path("."), help="output directory (default .)")
+    d.add_argument("--out", type=Path, default=out_dir("psf"),
+                   help="output directory (default: %(default)s)")
     d.add_argument("--seed", type=int, default=7, help="scenario seed (default 7)")
     d.add_argument("--backend", default="auto",
-                   help="solver backend: auto, acados, casadi-ipopt, casadi-fatrop")
-    d.add_argument("--duration", type=float, default=60.0, help="simulated time [s]")
+                   choices=("auto", "acados", "casadi-ipopt", "casadi-fatrop"),
+                   help="solver backend (default: %(default)s)")
+    d.add_argument("--duration", type=positive_float, default=60.0,
+                   help="simulated time [s], > 0")
     d.set_defaults(func=_demo)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 

@@ -4,10 +4,27 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
 from pathlib import Path
 
-__all__ = ["plot_manoeuvre", "register", "write_csv"]
+from asvtwin.cli.argtypes import fraction, out_dir
+
+__all__ = ["register", "write_csv"]
+
+#: The CSV's columns: name, meaning, unit (also in docs/vessel.md).
+CSV_COLUMNS = (
+    ("t_s", "time since the start of the manoeuvre", "s"),
+    ("x_m", "north position (scene frame, or the start point)", "m"),
+    ("y_m", "east position", "m"),
+    ("psi_deg", "heading from north, clockwise", "deg"),
+    ("u_m_s", "surge speed (body frame)", "m/s"),
+    ("v_m_s", "sway speed (body frame)", "m/s"),
+    ("r_deg_s", "yaw rate", "deg/s"),
+    ("tau_u_n", "surge thrust reaching the hull (after the thruster lag)", "N"),
+    ("tau_v_n", "sway thrust reaching the hull", "N"),
+    ("tau_r_nm", "yaw moment reaching the hull", "Nm"),
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -18,41 +35,45 @@ def register(sub: argparse._SubParsersAction) -> None:
         "sim",
         help="run a manoeuvre (turning circle, zig-zag, thrust step); write CSV + PNG",
         description="Simulate a standard manoeuvre with the 3-DOF model and thruster "
-                    "dynamics; print its numbers, write <out>/<vessel>_<manoeuvre>.csv "
-                    "and .png.",
+                    "dynamics; print its numbers with the IMO MSC.137(76) criteria, write "
+                    "<out>/<vessel>_<manoeuvre>.csv and .png.",
     )
-    p.add_argument("--vessel", choices=sorted(VESSELS), default="cybership2_fullscale",
+    p.add_argument("--vessel", choices=sorted(VESSELS), default="cybership2_full_scale",
                    help="parameter set (default: %(default)s)")
-    p.add_argument("--manoeuvre", choices=sorted(MANOEUVRES), default="turning-circle",
+    p.add_argument("--manoeuvre", choices=sorted(MANOEUVRES), default="turning_circle",
+                   type=lambda s: s.replace("-", "_"),
                    help="manoeuvre (default: %(default)s)")
-    p.add_argument("--surge-fraction", type=float, default=None,
-                   help="surge thrust as a fraction of the largest (default: 1.0; "
+    p.add_argument("--surge-fraction", type=fraction, default=None, metavar="F",
+                   help="surge thrust as a fraction in (0, 1] of the largest (default: 1.0; "
                         "0.2 for the zig-zag, where CyberShip II is course-unstable "
                         "at higher speed)")
-    p.add_argument("--yaw-fraction", type=float, default=1.0,
-                   help="yaw moment as a fraction of the largest (turning circle, "
-                        "zig-zag; default: %(default)s)")
-    p.add_argument("--switch-deg", type=float, default=10.0,
-                   help="zig-zag heading switch angle [deg] (default: %(default)s)")
-    p.add_argument("--dt", type=float, default=None, help="time step [s] (default: L/U/50)")
-    p.add_argument("--out", type=Path, default=Path("out"),
+    p.add_argument("--yaw-fraction", type=fraction, default=1.0, metavar="F",
+                   help="yaw moment as a fraction in (0, 1] of the largest (turning "
+                        "circle, zig-zag; default: %(default)s)")
+    p.add_argument("--switch-deg", type=float, default=10.0, metavar="DEG",
+                   help="zig-zag heading switch angle in (0, 90) [deg] (default: "
+                        "%(default)s)")
+    p.add_argument("--dt", type=float, default=None, metavar="S",
+                   help="time step [s], below the RK4 stability limit (default: L/U/50)")
+    p.add_argument("--out", type=Path, default=out_dir("sim"), metavar="DIR",
                    help="output folder (default: %(default)s)")
     p.add_argument("--no-plot", action="store_true", help="write the CSV only")
+    p.add_argument("--json", action="store_true",
+                   help="print the metrics, notes and criteria as one JSON object")
     p.add_argument("--scene", default=None, metavar="SCENE",
                    help="run the manoeuvre at the origin of a scene ('default' for the "
                         "embedded Trondheim Fjord, or a scene file); draws the coast and "
                         "reports the closest approach to the shore")
-    p.add_argument("--start-heading-deg", type=float, default=0.0,
+    p.add_argument("--start-heading-deg", type=float, default=0.0, metavar="DEG",
                    help="initial heading [deg from north] (default: %(default)s)")
     p.set_defaults(func=_run)
 
 
 def write_csv(path: Path, result) -> None:
-    """Time series of a manoeuvre as CSV (SI units, heading in degrees)."""
+    """Time series of a manoeuvre as CSV (columns: :data:`CSV_COLUMNS`)."""
     with path.open("w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["t_s", "x_m", "y_m", "psi_deg", "u_m_s", "v_m_s", "r_deg_s",
-                    "tau_u_n", "tau_v_n", "tau_r_nm"])
+        w.writerow([c[0] for c in CSV_COLUMNS])
         for t, x, tau in zip(result.t_s, result.x, result.tau):
             w.writerow([f"{t:.4f}", f"{x[0]:.4f}", f"{x[1]:.4f}",
                         f"{math.degrees(x[2]):.4f}", f"{x[3]:.5f}", f"{x[4]:.5f}",
@@ -60,86 +81,15 @@ def write_csv(path: Path, result) -> None:
                         f"{tau[2]:.6g}"])
 
 
-def plot_manoeuvre(path: Path, result, scene=None) -> None:
-    """Track (north up) and time series of a manoeuvre as a PNG; with a scene, the
-    coast around the track is drawn too."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-
-    x = result.x
-    span = float(np.ptp(x[:, :2], axis=0).max()) or 1.0
-    hull_len = span / 15.0
-    fig = plt.figure(figsize=(11, 5.5), constrained_layout=True)
-    gs = fig.add_gridspec(3, 2, width_ratios=[1.1, 1])
-    ax = fig.add_subplot(gs[:, 0])
-    ax.plot(x[:, 1], x[:, 0], "-", color="tab:blue", lw=1.5)
-    k = np.arange(0, len(x), max(1, len(x) // 16))
-    ax.quiver(x[k, 1], x[k, 0], np.sin(x[k, 2]), np.cos(x[k, 2]), color="tab:blue",
-              angles="xy", scale_units="xy", scale=1.0 / hull_len,
-              width=0.004, label="heading")
-    ax.plot(x[0, 1], x[0, 0], "o", color="k", label="start")
-    if scene is not None:
-        import shapely
-
-        pad = max(span, 300.0)
-        box = shapely.box(x[:, 0].min() - pad, x[:, 1].min() - pad,
-                          x[:, 0].max() + pad, x[:, 1].max() + pad)
-        near = scene.land.polygons.intersection(box)
-        for poly in shapely.get_parts(near):
-            if poly.geom_type != "Polygon":
-                continue
-            n_, e_ = poly.exterior.xy
-            ax.fill(e_, n_, color="#d9c9a3", edgecolor="#8a7a55", lw=0.8, zorder=0)
-        ax.set_xlim(box.bounds[1], box.bounds[3])
-        ax.set_ylim(box.bounds[0], box.bounds[2])
-        ax.set_aspect("equal", adjustable="box")
-        ax.set_facecolor("#e6f0f7")
-    ax.set_xlabel("east [m]")
-    ax.set_ylabel("north [m]")
-    if scene is None:
-        ax.set_aspect("equal", adjustable="datalim")
-    ax.grid(alpha=0.3)
-    where = f" — {scene.name}" if scene is not None else ""
-    ax.set_title(f"{result.name} — {result.vessel}{where}")
-    text = "\n".join(f"{k} = {v:.3g}" for k, v in result.metrics.items())
-    ax.text(0.02, 0.02, text, transform=ax.transAxes, fontsize=8, va="bottom",
-            bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "0.7"})
-    t = result.t_s
-    a1 = fig.add_subplot(gs[0, 1])
-    a1.plot(t, np.degrees(x[:, 2]), color="tab:purple")
-    a1.set_ylabel("heading ψ [deg]")
-    a2 = fig.add_subplot(gs[1, 1], sharex=a1)
-    a2.plot(t, x[:, 3], label="u")
-    a2.plot(t, x[:, 4], label="v")
-    a2.set_ylabel("speed [m/s]")
-    a2.legend(loc="best", fontsize=8)
-    a3 = fig.add_subplot(gs[2, 1], sharex=a1)
-    a3.plot(t, np.degrees(x[:, 5]), color="tab:red")
-    a3.set_ylabel("yaw rate r [deg/s]")
-    a3.set_xlabel("time [s]")
-    for a in (a1, a2, a3):
-        a.grid(alpha=0.3)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
 def _run(args: argparse.Namespace) -> int:
-    from rich.console import Console
-    from rich.table import Table
-
-    from asvtwin.errors import AsvTwinError
-    from asvtwin.vessel.manoeuvres import MANOEUVRES
+    from asvtwin.vessel.manoeuvres import MANOEUVRES, METRICS
     from asvtwin.vessel.params import vessel_by_name
 
-    console = Console()
     params = vessel_by_name(args.vessel)
     kwargs: dict = {}
     if args.dt is not None:
         kwargs["dt_s"] = args.dt
-    if args.manoeuvre != "thrust-step":
+    if args.manoeuvre != "thrust_step":
         kwargs["yaw_fraction"] = args.yaw_fraction
     surge = args.surge_fraction
     if surge is None:
@@ -149,16 +99,15 @@ def _run(args: argparse.Namespace) -> int:
         kwargs["switch_deg"] = args.switch_deg
     if args.start_heading_deg != 0.0:
         kwargs["psi0_rad"] = math.radians(args.start_heading_deg)
+    # refuse an unusable output path before minutes of simulation
+    args.out.mkdir(parents=True, exist_ok=True)
     scene = None
-    try:
-        if args.scene is not None:
-            from asvtwin.geo import default_scene, load_scene
+    if args.scene is not None:
+        from asvtwin.geo import default_scene, load_scene
 
-            scene = default_scene() if args.scene == "default" else load_scene(args.scene)
-        result = MANOEUVRES[args.manoeuvre](params, **kwargs)
-    except AsvTwinError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        return 1
+        scene = default_scene() if args.scene == "default" else load_scene(args.scene)
+    result = MANOEUVRES[args.manoeuvre](params, **kwargs)
+    aground = None
     if scene is not None:
         import numpy as np
 
@@ -167,19 +116,53 @@ def _run(args: argparse.Namespace) -> int:
         clearance = float(np.min(scene.land.distance_to_shore(track)))
         result.metrics["min_distance_to_shore_m"] = 0.0 if on_land.any() else clearance
         if on_land.any():
-            t_ground = float(result.t_s[np.argmax(on_land)])
-            console.print(f"[red]aground[/red] at t = {t_ground:.1f} s in {scene.name}")
-    table = Table(title=f"{args.manoeuvre} — {params.name} (L = {params.length:g} m)")
-    table.add_column("metric")
-    table.add_column("value", justify="right")
-    for k, v in result.metrics.items():
-        table.add_row(k, f"{v:.4g}")
-    console.print(table)
-    args.out.mkdir(parents=True, exist_ok=True)
+            aground = float(result.t_s[np.argmax(on_land)])
     stem = args.out / f"{params.name}_{args.manoeuvre}"
     write_csv(stem.with_suffix(".csv"), result)
-    console.print(f"wrote {stem.with_suffix('.csv')}")
+    written = [stem.with_suffix(".csv")]
     if not args.no_plot:
-        plot_manoeuvre(stem.with_suffix(".png"), result, scene)
-        console.print(f"wrote {stem.with_suffix('.png')}")
+        from asvtwin.plots import manoeuvre_figure, save
+
+        fig = manoeuvre_figure(result, length_m=params.length, scene=scene)
+        written.append(save(fig, stem.with_suffix(".png"), dpi=110))
+    if args.json:
+        print(json.dumps({
+            "manoeuvre": result.name, "vessel": params.name, "length_m": params.length,
+            "metrics": {k: (None if math.isnan(v) else v) for k, v in result.metrics.items()},
+            "notes": result.notes,
+            "criteria": [{"name": c.name, "value": None if math.isnan(c.value) else c.value,
+                          "limit": c.limit, "unit": c.unit, "passed": c.passed,
+                          "clause": c.clause} for c in result.criteria],
+            "aground_at_s": aground,
+            "files": [str(p) for p in written]}))
+        return 0
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    if aground is not None:
+        console.print(f"[red]aground[/red] at t = {aground:.1f} s in {scene.name}")
+    table = Table(title=f"{args.manoeuvre} — {params.name} (L = {params.length:g} m)")
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    table.add_column("unit")
+    table.add_column("key", style="dim")
+    for k, v in result.metrics.items():
+        words, unit = METRICS.get(k, (k, ""))
+        table.add_row(words, "undefined" if math.isnan(v) else f"{v:.4g}", unit, k)
+    console.print(table)
+    for k, why in result.notes.items():
+        console.print(f"[yellow]{k} undefined:[/yellow] {why}")
+    if result.criteria:
+        crit = Table(title="IMO MSC.137(76) manoeuvring criteria (for orientation: the "
+                           "Standards apply to ships ≥ 100 m with a rudder)")
+        for col in ("criterion", "value", "limit", "result", "clause"):
+            crit.add_column(col)
+        for c in result.criteria:
+            crit.add_row(c.name, "undefined" if math.isnan(c.value) else f"{c.value:.3g} {c.unit}",
+                         f"≤ {c.limit:.3g} {c.unit}",
+                         "[green]pass[/green]" if c.passed else "[red]fail[/red]", c.clause)
+        console.print(crit)
+    for path in written:
+        print(f"wrote {path}")
     return 0

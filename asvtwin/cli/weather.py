@@ -12,6 +12,8 @@ import math
 from datetime import UTC
 from typing import Any
 
+from asvtwin.cli.argtypes import positive_float
+
 __all__ = ["register"]
 
 
@@ -30,8 +32,10 @@ def register(subparsers: Any) -> None:
     s.add_argument("--lon", type=float, default=10.39, help="longitude for --live [deg]")
     s.add_argument("--user-agent", default=None,
                    help="application and contact, e.g. 'asvtwin/0.1 you@example.com'")
-    s.add_argument("--hours", type=float, default=24.0, help="hours of forecast to show")
-    s.add_argument("--step", type=float, default=3.0, help="hours between rows (interpolated)")
+    s.add_argument("--hours", type=positive_float, default=24.0,
+                   help="hours of forecast to show")
+    s.add_argument("--step", type=positive_float, default=3.0,
+                   help="hours between rows (interpolated), > 0")
     s.add_argument("--json", action="store_true", help="print JSON rows")
     s.set_defaults(func=_show)
 
@@ -57,9 +61,8 @@ def _show(args: argparse.Namespace) -> int:
         else:
             source = OfflineWeatherSource(args.file)
         fc = source.fetch()
-    except AsvTwinError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        return 2
+    except AsvTwinError:
+        raise  # one line on stderr, exit 2: asvtwin.cli.main
     series = fc.series
     t0 = series.span_unix_s[0]
     times = np.arange(t0, min(t0 + args.hours * 3600.0, series.span_unix_s[1]) + 1.0,

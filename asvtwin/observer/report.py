@@ -257,7 +257,7 @@ def _fmt(v: float) -> str:
 
 
 def write_report(out_dir: str | Path, vessels: Sequence[str] = ("cybership2",
-                                                                 "cybership2_fullscale"),
+                                                                 "cybership2_full_scale"),
                  *, seed: int = 1, faults: bool = True, fault_runs: int = 20,
                  fault_free_hours: float = 10.0, runs: int = 8) -> dict[str, Path]:
     """Run the validation and write the table (Markdown, JSON) and the plot.

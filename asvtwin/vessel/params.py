@@ -472,20 +472,23 @@ def cybership2_full_scale() -> VesselParams:
     while giving the fjord a ship to scale (top speed ≈ 0.57·√70 ≈ 4.8 m/s ≈ 9 kn,
     surge force up to ≈ 0.7 MN), and the Froude-similarity test ties the two together.
     """
-    return froude_scale(cybership2(), 70.0, rho_water=RHO_SEA, name="cybership2_fullscale")
+    return froude_scale(cybership2(), 70.0, rho_water=RHO_SEA, name="cybership2_full_scale")
 
 
 #: Registry of the shipped parameter sets, by name.
 VESSELS = {
     "cybership2": cybership2,
-    "cybership2_fullscale": cybership2_full_scale,
+    "cybership2_full_scale": cybership2_full_scale,
 }
+
+#: Former names still accepted by :func:`vessel_by_name`.
+_ALIASES = {"cybership2_fullscale": "cybership2_full_scale"}
 
 
 def vessel_by_name(name: str) -> VesselParams:
     """A shipped parameter set by name (see :data:`VESSELS`)."""
     try:
-        return VESSELS[name]()
+        return VESSELS[_ALIASES.get(name, name)]()
     except KeyError:
         raise ParameterError(
             f"unknown vessel {name!r}; expected one of {sorted(VESSELS)}"

@@ -35,14 +35,14 @@ def test_every_command_has_help(capsys):
 
 
 def test_sim_writes_csv_and_png(tmp_path, capsys):
-    assert main(["sim", "--vessel", "cybership2", "--manoeuvre", "thrust-step",
+    assert main(["sim", "--vessel", "cybership2", "--manoeuvre", "thrust_step",
                  "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert "steady_speed_analytic_m_s" in out
-    rows = list(csv.DictReader((tmp_path / "cybership2_thrust-step.csv").open()))
+    assert "steady_speed_analytic_m_s" in out and "steady speed, analytic" in out
+    rows = list(csv.DictReader((tmp_path / "cybership2_thrust_step.csv").open()))
     assert float(rows[0]["u_m_s"]) == 0.0
     assert float(rows[-1]["u_m_s"]) == pytest.approx(0.5788, abs=2e-3)
-    png = (tmp_path / "cybership2_thrust-step.png").read_bytes()
+    png = (tmp_path / "cybership2_thrust_step.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
 
 
@@ -55,15 +55,15 @@ def test_sim_rejects_unknown_vessel(capsys):
 
 def test_sim_in_the_fjord_reports_clearance_and_grounding(tmp_path, capsys):
     # from Trondheim harbour north into open water: clear of the shore
-    assert main(["sim", "--scene", "default", "--manoeuvre", "turning-circle",
+    assert main(["sim", "--scene", "default", "--manoeuvre", "turning_circle",
                  "--out", str(tmp_path), "--no-plot"]) == 0
     out = capsys.readouterr().out
     assert "min_distance_to_shore_m" in out and "aground" not in out
     # heading 120° from the harbour runs onto Brattøra
-    assert main(["sim", "--scene", "default", "--manoeuvre", "thrust-step",
+    assert main(["sim", "--scene", "default", "--manoeuvre", "thrust-step",  # old spelling
                  "--start-heading-deg", "120", "--out", str(tmp_path), "--no-plot"]) == 0
     assert "aground at t =" in capsys.readouterr().out
     rows = list(csv.DictReader(
-        (tmp_path / "cybership2_fullscale_thrust-step.csv").open()))
+        (tmp_path / "cybership2_full_scale_thrust_step.csv").open()))
     assert float(rows[-1]["psi_deg"]) == pytest.approx(120.0)
     assert float(rows[-1]["y_m"]) > 0 > float(rows[-1]["x_m"])  # heading south-east

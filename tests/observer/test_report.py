@@ -44,7 +44,9 @@ def test_cli_report(tmp_path, capsys):
 
 
 def test_cli_unknown_vessel_is_reported(tmp_path, capsys):
-    rc = main(["observer", "report", "--out", str(tmp_path), "--vessel", "titanic",
-               "--no-faults"])
-    assert rc == 2
-    assert "unknown vessel 'titanic'" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as e:
+        main(["observer", "report", "--out", str(tmp_path), "--vessel", "titanic",
+              "--no-faults"])
+    assert e.value.code == 2
+    out, err = capsys.readouterr()
+    assert "invalid choice: 'titanic'" in err and out == ""

@@ -84,7 +84,7 @@ def test_ais_listen_tcp_on_loopback(capsys) -> None:
 
 def test_ais_bad_source(capsys) -> None:
     assert main(["ais", "listen", "tcp://127.0.0.1", "--no-live"]) == 2
-    assert "port is required" in capsys.readouterr().out
+    assert "port is required" in capsys.readouterr().err  # errors go to stderr
 
 
 def test_weather_show_offline_and_live_needs_a_user_agent(capsys, monkeypatch) -> None:
@@ -96,4 +96,4 @@ def test_weather_show_offline_and_live_needs_a_user_agent(capsys, monkeypatch) -
     assert "MET Norway" in capsys.readouterr().out
     monkeypatch.delenv("ASVTWIN_USER_AGENT", raising=False)
     assert main(["weather", "show", "--live"]) == 2  # refused before any connection
-    assert "contact" in capsys.readouterr().out
+    assert "contact" in capsys.readouterr().err  # errors go to stderr

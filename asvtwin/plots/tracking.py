@@ -9,7 +9,9 @@
 4. ``near_coast.png`` — a scene in the Trondheim Fjord close to the shore: coast returns
    removed, vessels tracked, cones drawn.
 
-Everything is simulated from a seed; matplotlib is imported here only (Agg backend).
+Everything is simulated from a seed. Figures are built on the Figure-object API
+(:mod:`asvtwin.plots.base`): no pyplot state, no backend change, one legend policy (outside
+the axes), one coast drawing (holes kept), one colour and one ID label per track.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from asvtwin.plots.base import draw_coast, legend, new_figure, save, track_colours
 from asvtwin.sensors import HIT_COAST, Lidar, LidarConfig, hull_polygons
 from asvtwin.tracking.clustering import cluster_scan
 from asvtwin.tracking.ellipse import fit_ellipse
@@ -61,7 +64,7 @@ def _rectangle(ax_pair, rng):  # type: ignore[no-untyped-def]
         ax.grid(alpha=0.3)
     ax_pair[0].set_ylabel("north [m]")
     ax_pair[0].set_ylim(-7.5, 7.5)
-    ax_pair[0].legend(loc="lower center", fontsize=8, ncol=2)
+    legend(ax_pair[1])
 
 
 def _multi_target(ax, rng):  # type: ignore[no-untyped-def]
@@ -88,8 +91,9 @@ def _multi_target(ax, rng):  # type: ignore[no-untyped-def]
     ax.set_aspect("equal")
     ax.set_xlabel("east [m]")
     ax.set_ylabel("north [m]")
-    ax.set_title("Multi-target ellipse fitting on synthetic LiDAR (1440 rays, σ_r = 0.15 m)", fontsize=10)
-    ax.legend(loc="lower right", fontsize=8)
+    ax.set_title("Multi-target ellipse fitting on synthetic LiDAR\n(1440 rays, σ_r = 0.15 m)",
+                 fontsize=10)
+    legend(ax, where="below")
     ax.grid(alpha=0.3)
 
 
@@ -112,14 +116,16 @@ def _track_and_predict(rng, *, land=None, own=None, x0, L, T=120, ais_std=10.0):
     return snap, scan, hist
 
 
-def _cone(ax, snap, x0, T, horizon=120.0):  # type: ignore[no-untyped-def]
+def _cone(ax, snap, x0, T, horizon=120.0, colours=None):  # type: ignore[no-untyped-def]
     c = snap.confirmed()
     times = snap.t_s + np.linspace(0.0, horizon, 25)
     pred = predict_tracks(c.mean, c.cov, snap.t_s, times, TrackerConfig().q)
     for i in range(len(c)):
+        colour = "tab:green" if colours is None else colours[int(c.ids[i])]
         poly = uncertainty_polygon(pred.positions[i], pred.cov[i, :, :2, :2], k_sigma=2.0)
-        ax.fill(poly[:, 1], poly[:, 0], color="tab:green", alpha=0.25, lw=0)
-        ax.plot(pred.positions[i, :, 1], pred.positions[i, :, 0], "-", color="tab:green", lw=2)
+        ax.fill(poly[:, 1], poly[:, 0], color=colour, alpha=0.25, lw=0)
+        ax.plot(pred.positions[i, :, 1], pred.positions[i, :, 0], "--" if colours else "-",
+                color=colour, lw=2)
     return pred
 
 
@@ -138,35 +144,26 @@ def make_tracking_figures(out_dir: str | Path, *, seed: int = 0) -> list[Path]:
     list of Path
         The files written.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     files = []
 
-    fig, axs = plt.subplots(1, 2, figsize=(11, 4.6), sharey=True)
+    fig = new_figure(12.5, 4.6)
+    axs = fig.subplots(1, 2, sharey=True)
     _rectangle(axs, rng)
     fig.suptitle("Numerically stable direct least-squares ellipse fit to a 20 × 6 m rectangle")
-    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.93))
-    files.append(out / "rectangle_fit.png")
-    fig.savefig(files[-1], dpi=130)
-    plt.close(fig)
+    files.append(save(fig, out / "rectangle_fit.png"))
 
-    fig, ax = plt.subplots(figsize=(7.5, 7))
-    _multi_target(ax, rng)
-    fig.tight_layout()
-    files.append(out / "multi_target_ellipses.png")
-    fig.savefig(files[-1], dpi=130)
-    plt.close(fig)
+    fig = new_figure(7.5, 8.0)
+    _multi_target(fig.add_subplot(), rng)
+    files.append(save(fig, out / "multi_target_ellipses.png"))
 
     # one crossing vessel, AIS + LiDAR, 120 s of tracking, 120 s prediction
     x0 = np.array([[-250.0, -30.0, 2.5, 1.5]])  # passes ~110 m from the own ship
     snap, _, hist = _track_and_predict(rng, x0=x0, L=np.array([30.0]), T=90)
-    fig, ax = plt.subplots(figsize=(8, 6))
+    fig = new_figure(10.0, 6.0)
+    ax = fig.add_subplot()
     pred = _cone(ax, snap, x0, 90)
     for h in hist.values():
         h = np.array(h)
@@ -182,20 +179,15 @@ def make_tracking_figures(out_dir: str | Path, *, seed: int = 0) -> list[Path]:
     ax.set_aspect("equal")
     ax.set_xlabel("east [m]")
     ax.set_ylabel("north [m]")
-    ax.legend(loc="upper left", fontsize=8)
+    legend(ax)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    files.append(out / "prediction_cone.png")
-    fig.savefig(files[-1], dpi=130)
-    plt.close(fig)
+    files.append(save(fig, out / "prediction_cone.png"))
 
-    files.append(_near_coast(out, rng, plt))
+    files.append(_near_coast(out, rng))
     return files
 
 
-def _near_coast(out: Path, rng, plt):  # type: ignore[no-untyped-def]
-    import shapely
-
+def _near_coast(out: Path, rng):  # type: ignore[no-untyped-def]
     from asvtwin.geo import default_scene
 
     scene = default_scene()
@@ -209,36 +201,33 @@ def _near_coast(out: Path, rng, plt):  # type: ignore[no-untyped-def]
     x0 = np.array([[*p, *v] for p, v in zip(starts, vel)])
     L = np.array([35.0, 20.0, 28.0])
     snap, scan, hist = _track_and_predict(rng, land=land, own=own, x0=x0, L=L, T=100)
-    fig, ax = plt.subplots(figsize=(8, 7.5))
-    win = shapely.box(own[0] - 650, own[1] - 650, own[0] + 650, own[1] + 650)
-    for poly in shapely.get_parts(land.polygons.intersection(win)):
-        if poly.geom_type == "Polygon":
-            n, e = np.asarray(poly.exterior.xy)
-            ax.fill(e, n, color="#d9c9a3", ec="#8a7a55", lw=0.8)
+    fig = new_figure(10.0, 7.5)
+    ax = fig.add_subplot()
+    draw_coast(ax, land, (own[0] - 600, own[1] - 600, own[0] + 600, own[1] + 600))
     pts = scan.points_ned[scan.hit]
     is_coast = scan.hit_id[scan.hit] == HIT_COAST
     ax.plot(pts[is_coast, 1], pts[is_coast, 0], ".", color="0.35", ms=3, label="coast returns (removed)")
     ax.plot(pts[~is_coast, 1], pts[~is_coast, 0], ".", color="tab:red", ms=4, label="vessel returns")
-    _cone(ax, snap, x0, 100, horizon=60.0)
-    for h in hist.values():
-        h = np.array(h)
-        ax.plot(h[:, 1], h[:, 0], "-", color="tab:blue", lw=1.5)
-    ax.plot(own[1], own[0], "k^", ms=9, label="own ship")
     c = snap.confirmed()
-    ax.plot([], [], "-", color="tab:blue", label=f"tracks ({len(c)} confirmed, 3 vessels)")
-    ax.plot([], [], "-", color="tab:green", lw=2, label="60 s prediction, 2σ band")
+    ids = sorted(hist)
+    colours = dict(zip(ids, track_colours(len(ids))))
+    _cone(ax, snap, x0, 100, horizon=60.0, colours=colours)
+    confirmed = {int(i) for i in c.ids}
+    for tid in ids:
+        h = np.array(hist[tid])
+        shown = tid in confirmed
+        ax.plot(h[:, 1], h[:, 0], "-", color=colours[tid], lw=1.5 if shown else 0.8,
+                alpha=1.0 if shown else 0.5,
+                label=f"track {tid}" + ("" if shown else " (not confirmed)"))
+        ax.annotate(f"{tid}", (h[-1, 1], h[-1, 0]), xytext=(4, 4), textcoords="offset points",
+                    fontsize=8, color=colours[tid], fontweight="bold")
+    ax.plot(own[1], own[0], "k^", ms=9, label="own ship")
+    ax.plot([], [], "--", color="0.3", lw=2, label="60 s prediction, 2σ band (track colour)")
     d = land.distance_to_shore(c.mean[:, :2])
     ax.set_title(f"Near the coast, Trondheim Fjord: tracks {', '.join(f'{v:.0f}' for v in sorted(d))} m off "
                  f"the shore,\n{snap.counters['coast_points']} coast returns removed, "
                  f"{snap.counters['tracks_created'] - 3} spurious tracks", fontsize=10)
-    ax.set_xlim(own[1] - 600, own[1] + 600)
-    ax.set_ylim(own[0] - 600, own[0] + 600)
-    ax.set_aspect("equal")
     ax.set_xlabel("east [m] (scene frame)")
     ax.set_ylabel("north [m]")
-    ax.legend(loc="lower left", fontsize=8)
-    fig.tight_layout()
-    path = out / "near_coast.png"
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
+    legend(ax)
+    return save(fig, out / "near_coast.png")
