@@ -1,0 +1,155 @@
+"""Turning the components' outputs into the parts of a :class:`~asvtwin.twin.snapshot.Snapshot`.
+
+Pure functions from plain values to frozen snapshot parts (every array copied read-only by
+:func:`~asvtwin.twin.snapshot.ro`), so the runtime fills the whole tree each time and a
+test can check each part alone. Units and frames as in :mod:`asvtwin.twin.snapshot`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from asvtwin.control import FilterResult
+from asvtwin.geo import LandMask, LocalFrame
+from asvtwin.sensors import LidarScan
+from asvtwin.sources.ais import TargetSnapshot
+from asvtwin.tracking import EllipseFits, TrackSnapshot, predict_tracks
+from asvtwin.twin.snapshot import (
+    AisTargets,
+    Ellipses,
+    FilterState,
+    LidarFrame,
+    Tracks,
+    ro,
+)
+
+__all__ = ["ais_part", "cpa_tcpa", "ellipses_part", "filter_part", "ground_velocity",
+           "lidar_part", "tracks_part"]
+
+_F8 = NDArray[np.float64]
+
+
+def ground_velocity(x: _F8) -> _F8:
+    """Velocity over ground ``[v_north, v_east]`` [m/s] of states (..., 6): η̇ = R(ψ) ν."""
+    c, s = np.cos(x[..., 2]), np.sin(x[..., 2])
+    return np.stack([c * x[..., 3] - s * x[..., 4], s * x[..., 3] + c * x[..., 4]], axis=-1)
+
+
+def cpa_tcpa(p_own: _F8, v_own: _F8, p: _F8, v: _F8) -> tuple[_F8, _F8]:
+    """Closest point of approach [m] and time to it [s] of targets (n, 2) relative to the
+    own ship, at constant velocities; NaN where they do not close (TCPA < 0 or no relative
+    motion)."""
+    dp = p - p_own[None]
+    dv = v - v_own[None]
+    vv = np.sum(dv * dv, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = -np.sum(dp * dv, axis=1) / vv
+    ok = (vv > 1e-12) & (t >= 0)
+    t = np.where(ok, t, np.nan)
+    cpa = np.hypot(*(dp + np.nan_to_num(t)[:, None] * dv).T)
+    return np.where(ok, cpa, np.nan), t
+
+
+def ais_part(ts: TargetSnapshot, frame: LocalFrame) -> AisTargets:
+    """AIS targets, dead-reckoned (NaN where a value was not available)."""
+    n = len(ts)
+    vel = ts.velocity_m_s
+    known = ts.velocity_known
+    sog = np.where(known, np.hypot(vel[:, 0], vel[:, 1]), np.nan)
+    cog = np.where(known, np.arctan2(vel[:, 1], vel[:, 0]), np.nan)
+    names, L, B = [], np.full(n, np.nan), np.full(n, np.nan)
+    for i, st in enumerate(ts.static):
+        names.append((st.name or "").strip() if st is not None else "")
+        if st is not None and st.to_bow_m is not None and st.to_stern_m is not None:
+            L[i] = st.to_bow_m + st.to_stern_m
+            if st.to_port_m is not None and st.to_starboard_m is not None:
+                B[i] = st.to_port_m + st.to_starboard_m
+    lat, lon = frame.to_wgs84(ts.position_m[:, 0], ts.position_m[:, 1]) if n else \
+        (np.zeros(0), np.zeros(0))
+    return AisTargets(
+        mmsi=ro(ts.mmsi, np.int64), names=tuple(names), position_m=ro(ts.position_m, shape=(-1, 2)),
+        lat_deg=ro(lat), lon_deg=ro(lon), sog_m_s=ro(sog), cog_rad=ro(cog),
+        heading_rad=ro(ts.heading_rad), age_s=ro(ts.age_s), stale=ro(ts.stale, np.bool_),
+        length_m=ro(L), beam_m=ro(B))
+
+
+def lidar_part(scan: LidarScan | None, land: LandMask | None, coast_margin_m: float
+               ) -> LidarFrame:
+    """The last scan's returns; ``coast`` marks those the chart puts on the shore."""
+    if scan is None:
+        return LidarFrame()
+    pts = scan.points
+    coast = (land.signed_distance(pts) < coast_margin_m if land is not None and len(pts)
+             else np.zeros(len(pts), bool))
+    return LidarFrame(t_s=scan.t_s, origin=ro(scan.origin_ned), range_m=scan.max_range_m,
+                      n_rays=int(scan.ranges_m.shape[0]), points=ro(pts, shape=(-1, 2)),
+                      coast=ro(coast, np.bool_))
+
+
+def ellipses_part(fits: EllipseFits | None) -> Ellipses:
+    """Ellipses fitted to the last scan's clusters."""
+    if fits is None:
+        return Ellipses()
+    return Ellipses(centre=ro(fits.centre, shape=(-1, 2)), semi_axes_m=ro(fits.semi_axes, shape=(-1, 2)),
+                    angle_rad=ro(fits.angle_rad), ok=ro(fits.ok, np.bool_))
+
+
+def tracks_part(tr: TrackSnapshot, t_s: float, own: _F8, pred_times_s: _F8, q: float) -> Tracks:
+    """Tracks with CV prediction cones (2-σ radius) and CPA/TCPA to the own ship."""
+    n = len(tr)
+    h = pred_times_s.shape[0]
+    if n == 0:
+        return Tracks(pred_times_s=ro(pred_times_s), pred_mean=ro(np.zeros((0, h, 2))),
+                      pred_radius_m=ro(np.zeros((0, h))))
+    t0 = min(tr.t_s, t_s)
+    pred = predict_tracks(tr.mean, tr.cov, t0, t_s + pred_times_s, q)
+    radius = 2.0 * pred.position_std_max()
+    lid = np.isfinite(tr.lidar_only_mean[:, 0])
+    ais = np.isfinite(tr.ais_only_mean[:, 0])
+    source = tuple("fused" if a and b else "ais" if b else "lidar"
+                   for a, b in zip(lid.tolist(), ais.tolist(), strict=True))
+    mmsi = np.array([-1 if m is None else m for m in tr.mmsi], np.int64)
+    cpa, tcpa = cpa_tcpa(own[:2], ground_velocity(own), tr.mean[:, :2], tr.mean[:, 2:])
+    return Tracks(ids=ro(tr.ids, np.int64), mmsi=ro(mmsi, np.int64), status=tuple(tr.status),
+                  source=source, mean=ro(tr.mean), cov=ro(tr.cov), pred_times_s=ro(pred_times_s),
+                  pred_mean=ro(pred.positions), pred_radius_m=ro(radius), cpa_m=ro(cpa),
+                  tcpa_s=ro(tcpa))
+
+
+def filter_part(res: FilterResult | None, *, enabled: bool, t_s: float, u_L: _F8, u_0: _F8,
+                dt_s: float, d_safe_m: float, calls: int, interventions: int, fallbacks: int,
+                explanation: str = "") -> FilterState:
+    """The filter's last answer: plan, per-stage margins, critical stages, explanation."""
+    if res is None:
+        return FilterState(enabled=enabled, t_s=t_s, u_L=ro(u_L), u_0=ro(u_0), calls=calls,
+                           interventions=interventions, fallbacks=fallbacks,
+                           intervened=bool(np.max(np.abs(u_L - u_0)) > 0) if enabled else False,
+                           explanation=explanation)
+    margins = np.asarray(res.obstacle_margin_m, dtype=float)
+    critical = np.flatnonzero(np.isfinite(margins) & (margins < 0.25 * d_safe_m))
+    text = getattr(res, "explanation", "") or explanation or _explain(res, critical, dt_s)
+    return FilterState(
+        enabled=enabled, t_s=t_s, u_L=ro(u_L), u_0=ro(u_0), intervened=bool(res.intervened),
+        certified=bool(res.success), fallback=str(res.fallback), status=str(res.status),
+        explanation=text, plan=ro(res.x_pred[:, :2], shape=(-1, 2)),
+        plan_times_s=ro(dt_s * np.arange(res.x_pred.shape[0])),
+        plan_margin_m=ro(np.where(np.isfinite(margins), margins, np.nan)),
+        critical_stages=ro(critical, np.int64), solve_ms=1e3 * float(res.solve_time_s),
+        interventions=interventions, fallbacks=fallbacks, calls=calls)
+
+
+def _explain(res: FilterResult, critical: NDArray[np.int64], dt_s: float) -> str:
+    if res.fallback != "none":
+        return f"no certified plan ({res.status}); fallback '{res.fallback}' applied"
+    if not res.intervened:
+        return "proposal kept: the plan from it stays clear of every obstacle"
+    if critical.size:
+        k = int(critical[0])
+        return (f"proposal changed: the plan comes within its clearance of an obstacle at "
+                f"stage {k} ({k * dt_s:.0f} s ahead)")
+    kinds = sorted({a.kind for a in res.active}) or ["terminal set"]
+    return "proposal changed to respect " + ", ".join(kinds) + (
+        "" if math.isfinite(res.terminal_margin) else "")

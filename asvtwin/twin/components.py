@@ -1,0 +1,270 @@
+"""The twin's own components: what the own ship knows, built from measurements only.
+
+Each is a plain object the runtime calls at its rate; none knows the scheduler, the server
+or the recorder, so each runs alone in a test:
+
+- :class:`AisInput` — NMEA lines in, through the real :class:`~asvtwin.sources.ais.AisPipeline`
+  (decoding, fragment assembly, validation, error counters), the
+  :class:`~asvtwin.sources.ais.TargetRegistry` (dead reckoning, staleness) and the reports
+  queued for the tracker;
+- :class:`Perception` — LiDAR clusters (coast returns removed) and the multi-target tracker
+  (:class:`~asvtwin.tracking.Tracker`), with the ellipses of the last scan;
+- :class:`DisturbanceEstimator` — the disturbance observer (d̂ of τ_d) and the actuator
+  fault detector on measured velocities;
+- :class:`FilterStage` — the predictive safety filter, given the tracker's predictions as
+  moving obstacles (never ground truth), the scene's coast near the ship and d̂.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from asvtwin.control import (
+    CoastSegments,
+    FilterResult,
+    MovingObstacles,
+    PsfConfig,
+    SafetyFilter,
+    braking_input,
+)
+from asvtwin.geo import Scene
+from asvtwin.observer import DisturbanceObserver, FaultDetector, ResidualModel, SensorNoise
+from asvtwin.sensors import LidarScan
+from asvtwin.sources.ais import AisPipeline, ReportBatch, TargetRegistry, TargetSnapshot
+from asvtwin.tracking import (
+    AisMeasurementBatch,
+    Clusters,
+    EllipseFits,
+    Tracker,
+    TrackerConfig,
+    TrackSnapshot,
+    cluster_scan,
+    fit_ellipses,
+    predict_tracks,
+)
+from asvtwin.vessel import VesselParams
+
+__all__ = ["AisInput", "DisturbanceEstimator", "FilterStage", "Perception"]
+
+_F8 = NDArray[np.float64]
+
+
+class AisInput:
+    """AIS as the twin receives it: lines -> reports -> registry and tracker queue.
+
+    Parameters
+    ----------
+    scene : Scene
+        Frame and bounds of the pipeline.
+    epoch_unix_s : float
+        UNIX time of simulation time 0 [s].
+    evict_after_s : float
+        A target not heard for this long leaves the registry [s].
+    """
+
+    def __init__(self, scene: Scene, *, epoch_unix_s: float, evict_after_s: float = 300.0
+                 ) -> None:
+        self.epoch_unix_s = float(epoch_unix_s)
+        self.pipeline = AisPipeline(scene)
+        self.registry = TargetRegistry(epoch_unix_s=epoch_unix_s, evict_after_s=evict_after_s)
+        self._pending: list[AisMeasurementBatch] = []
+        self.lines = 0
+        self.reports = 0
+        self.last_report_t_s = math.nan
+
+    def step(self, t_s: float, lines: list[str]) -> ReportBatch:
+        """Take the lines received at ``t_s``; return the accepted reports."""
+        self.lines += len(lines)
+        batch = self.pipeline.feed_batch(lines, recv_time_s=self.epoch_unix_s + t_s)
+        if len(batch) or batch.static:
+            self.registry.update_batch(batch)
+        if len(batch):
+            self.reports += len(batch)
+            self.last_report_t_s = t_s
+            self._pending.append(AisMeasurementBatch.from_batch(
+                batch, epoch_unix_s=self.epoch_unix_s))
+        return batch
+
+    def take(self) -> AisMeasurementBatch | tuple[()]:
+        """The reports queued since the last call (for the tracker), as one batch."""
+        if not self._pending:
+            return ()
+        if len(self._pending) == 1:
+            out = self._pending[0]
+        else:
+            cols = {f.name: np.concatenate([getattr(b, f.name) for b in self._pending])
+                    for f in dataclasses.fields(AisMeasurementBatch)}
+            out = AisMeasurementBatch(**cols)
+        self._pending = []
+        return out
+
+    def targets(self, t_s: float) -> TargetSnapshot:
+        """The registry's targets dead-reckoned to ``t_s``."""
+        return self.registry.extrapolate(t_s)
+
+    def errors(self) -> dict[str, int]:
+        """The pipeline's error counters by kind."""
+        return {str(k): int(v) for k, v in self.pipeline.stats.errors.items()}
+
+
+class Perception:
+    """LiDAR segmentation and the tracker (AIS and LiDAR fused)."""
+
+    def __init__(self, scene: Scene | None, config: TrackerConfig | None = None) -> None:
+        self.land = scene.land if scene is not None else None
+        self.tracker = Tracker(config, self.land)
+        self.clusters: Clusters | None = None
+        self.tracks: TrackSnapshot = self.tracker.step(0.0)
+
+    def step(self, t_s: float, scan: LidarScan | None,
+             ais: AisMeasurementBatch | tuple[()]) -> TrackSnapshot:
+        """Track update at ``t_s`` with the scan taken since the last call (or None)."""
+        cl = None
+        if scan is not None:
+            cl = cluster_scan(scan, self.land, self.tracker.config.cluster)
+            self.clusters = cl
+        self.tracks = self.tracker.step(t_s, cl, ais)
+        return self.tracks
+
+    def ellipses(self) -> EllipseFits | None:
+        """Ellipse fits of the last scan's clusters (None before the first scan)."""
+        cl = self.clusters
+        if cl is None or len(cl) == 0:
+            return None
+        return fit_ellipses(cl.points, cl.offsets)
+
+
+class DisturbanceEstimator:
+    """The disturbance observer and the fault detector on measured ν (with sensor noise).
+
+    Parameters
+    ----------
+    params : VesselParams
+        The own ship.
+    dt_s : float
+        Sampling period [s].
+    rng : numpy.random.Generator
+        Draws the velocity sensor noise.
+    """
+
+    def __init__(self, params: VesselParams, *, dt_s: float, rng: np.random.Generator) -> None:
+        self.params = params
+        self.dt_s = float(dt_s)
+        self.rng = rng
+        self.noise = SensorNoise.for_vessel(params)
+        self.observer = DisturbanceObserver(params, 1, dt_s=dt_s)
+        self.detector = FaultDetector(
+            params, 1, ResidualModel.from_sensor_noise(params, self.noise.sigma_nu, dt_s))
+        self.events: list[str] = []
+        self.fault_kind: str | None = None
+        self.fault_channel: str | None = None
+        self.fault_confidence = 0.0
+        self.nan_inputs = 0
+
+    @property
+    def d_hat(self) -> _F8:
+        """d̂ (3,) [N, N, Nm], body frame."""
+        return self.observer.estimate[0]
+
+    @property
+    def valid(self) -> bool:
+        """Whether the last update used a good measurement."""
+        return bool(self.observer.valid[0])
+
+    def measure(self, nu: _F8) -> _F8:
+        """ν as the velocity sensors report it (truth + white noise)."""
+        return nu + np.asarray(self.noise.sigma_nu) * self.rng.standard_normal(3)
+
+    def step(self, t_s: float, nu_meas: _F8, tau: _F8) -> _F8:
+        """One sample: measured ν (3,) (NaN = dropout) and the thrust over the step."""
+        if not np.isfinite(nu_meas).all() or not np.isfinite(tau).all():
+            self.nan_inputs += 1
+        self.observer.update(nu_meas[None], tau[None])
+        for ev in self.detector.update(t_s, nu_meas[None], tau[None]) or ():
+            self.fault_kind = str(getattr(ev, "kind", "fault"))
+            self.fault_channel = str(getattr(ev, "dof_name", getattr(ev, "dof", "")))
+            self.fault_confidence = float(getattr(ev, "confidence", 1.0))
+            self.events.append(f"t={t_s:.1f} s: actuator fault detected: {self.fault_kind} "
+                               f"in {self.fault_channel}")
+        return self.d_hat
+
+
+class FilterStage:
+    """The predictive safety filter fed from the twin's own picture.
+
+    Parameters
+    ----------
+    params : VesselParams
+    scene : Scene or None
+    backend : str
+        Safety filter backend (``"auto"``: the fastest installed).
+    tracker_q : float
+        The tracker's acceleration noise [m²/s³], for the obstacle predictions.
+    """
+
+    def __init__(self, params: VesselParams, scene: Scene | None, *, backend: str = "auto",
+                 tracker_q: float = 0.01) -> None:
+        self.params = params
+        self.land = scene.land if scene is not None else None
+        self.psf = SafetyFilter(params, config=PsfConfig(backend=backend))
+        cfg = self.psf.config
+        self.N, self.dt_s = cfg.N, cfg.dt_s
+        self.tracker_q = float(tracker_q)
+        self.hull_radius_m = 0.5 * params.length
+        reach = self.N * self.dt_s * float(self.psf.nu_max[0])
+        self.coast_radius_m = reach + self.psf.d_safe_m + self.psf.d_f_m
+        self.last: FilterResult | None = None
+        self.calls = 0
+        self.interventions = 0
+        self.fallbacks: dict[str, int] = {}
+
+    def obstacles(self, t_s: float, x: _F8, tracks: TrackSnapshot
+                  ) -> list[MovingObstacles | CoastSegments]:
+        """Moving obstacles from the confirmed tracks' CV predictions (2-σ inflation by the
+        predicted covariance), and the coast segments the plan could reach."""
+        obs: list[MovingObstacles | CoastSegments] = []
+        conf = tracks.confirmed()
+        if len(conf):
+            times = t_s + self.dt_s * np.arange(self.N + 1)
+            pred = predict_tracks(conf.mean, conf.cov, conf.t_s if conf.t_s <= t_s else t_s,
+                                  times, self.tracker_q)
+            pos = pred.positions
+            gap = np.min(np.hypot(pos[..., 0] - x[0], pos[..., 1] - x[1]), axis=1)
+            hull = np.where(np.isnan(conf.semi_axes_m[:, 0]), self.hull_radius_m,
+                            conf.semi_axes_m[:, 0])
+            keep = gap < self.coast_radius_m + hull
+            if keep.any():
+                obs.append(MovingObstacles(
+                    positions=pos[keep], radii=hull[keep],
+                    covariances=np.ascontiguousarray(pred.cov[keep][..., :2, :2])))
+        if self.land is not None:
+            segs = self.land.segments_within(x[:2], self.coast_radius_m)
+            if len(segs):
+                obs.append(CoastSegments(segs))
+        return obs
+
+    def step(self, t_s: float, x: _F8, u_L: _F8, tracks: TrackSnapshot, d_hat: _F8
+             ) -> FilterResult:
+        """u_0 for u_L at state ``x`` (never raises for bad solver luck; raises for bugs)."""
+        obs = self.obstacles(t_s, x, tracks)
+        d = d_hat if np.isfinite(d_hat).all() else None
+        res = self.psf.filter(x, u_L, obs, d, t_s=t_s)
+        self.last = res
+        self.calls += 1
+        if res.intervened:
+            self.interventions += 1
+        if res.fallback != "none":
+            self.fallbacks[res.fallback] = self.fallbacks.get(res.fallback, 0) + 1
+        return res
+
+    def emergency(self, t_s: float, x: _F8) -> _F8:
+        """The input when the filter itself failed (raised): braking with the yaw rate
+        damped (the terminal set's controller), never u_L. Counted as fallback
+        ``component_error``."""
+        self.fallbacks["component_error"] = self.fallbacks.get("component_error", 0) + 1
+        u = braking_input(self.params, x, self.psf.terminal_set.k_r)
+        return np.asarray(u, dtype=float).reshape(3)

@@ -1,0 +1,164 @@
+"""The own ship's controllers, by name: each proposes u_L; the safety filter may change it.
+
+A controller is any object with
+
+``act(t_s, nav_state (6,), route (k, 2), scan: LidarScan | None) -> u_L (3,)`` [N, N, Nm]
+
+built by a factory ``(params, own_ship_spec) -> controller`` registered in
+:data:`CONTROLLERS`:
+
+- ``manual`` — holds a thrust the operator sets (:meth:`ManualController.set_tau`); it
+  starts with the thrust that holds the start speed straight ahead;
+- ``los`` / ``los_psf`` — line-of-sight path following along the route (Fossen 2021,
+  *Handbook of Marine Craft Hydrodynamics and Motion Control*, 2nd ed., ch. 12) with the
+  heading/speed autopilot of :mod:`asvtwin.guidance`; ``los_psf`` runs through the
+  safety filter;
+- ``rl`` / ``rl_psf`` — the trained policy, ``asvtwin.rl.controller.RlController``,
+  imported when asked for (a clear error until it is installed).
+
+:func:`uses_filter` says whether a name puts the predictive safety filter between u_L
+and the thrusters.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from asvtwin.errors import ScenarioError, StateError
+from asvtwin.scenarios import OwnShipSpec
+from asvtwin.sensors import LidarScan
+from asvtwin.units import KNOT_M_S
+from asvtwin.vessel import VesselParams
+
+__all__ = ["CONTROLLERS", "Controller", "GuidanceStatus", "LosController", "ManualController",
+           "make_controller", "uses_filter"]
+
+_F8 = NDArray[np.float64]
+
+
+class Controller(Protocol):
+    """What the runtime asks of a controller."""
+
+    def act(self, t_s: float, nav_state: _F8, route: _F8, scan: LidarScan | None) -> _F8:
+        """u_L (3,) [N, N, Nm] for the navigation state ``[x, y, ψ, u, v, r]``."""
+        ...
+
+
+@dataclass(frozen=True)
+class GuidanceStatus:
+    """Where the own ship is on its route: active waypoint, cross-track error [m]
+    (positive to starboard of the leg), course command [rad], goal reached."""
+
+    waypoint_index: int = 0
+    cte_m: float = float("nan")
+    course_rad: float = float("nan")
+    done: bool = False
+
+
+class ManualController:
+    """Holds the thrust last set by the operator (bounded by the actuator limits)."""
+
+    def __init__(self, params: VesselParams, spec: OwnShipSpec) -> None:
+        from asvtwin.twin.world import steady_thrust
+
+        self.params = params
+        self.tau = steady_thrust(params, spec.speed_kn * KNOT_M_S)
+        self.status = GuidanceStatus()
+
+    def set_tau(self, tau: ArrayLike) -> None:
+        """Hold ``tau`` [N, N, Nm] from the next tick (clipped to the actuator limits)."""
+        t = np.asarray(tau, dtype=float).reshape(-1)
+        if t.shape != (3,) or not np.isfinite(t).all():
+            raise StateError(f"manual thrust must be 3 finite values [N, N, Nm], actually: {tau!r}")
+        act = self.params.actuators
+        self.tau = np.clip(t, act.tau_min, act.tau_max)
+
+    def act(self, t_s: float, nav_state: _F8, route: _F8, scan: LidarScan | None) -> _F8:
+        return self.tau.copy()
+
+
+class LosController:
+    """LOS guidance along the route plus the heading/speed autopilot."""
+
+    def __init__(self, params: VesselParams, spec: OwnShipSpec) -> None:
+        from asvtwin.guidance import HeadingSpeedAutopilot
+
+        self.params = params
+        self.speed_m_s = spec.cruise_speed_kn * KNOT_M_S
+        self.lookahead_m = spec.lookahead
+        self.acceptance_radius_m = spec.acceptance_radius
+        self.autopilot = HeadingSpeedAutopilot(params)
+        self.status = GuidanceStatus()
+        self._route: _F8 | None = None
+        self._los: Any = None
+
+    def _guidance(self, route: _F8) -> Any:
+        from asvtwin.guidance import LosGuidance
+
+        if self._route is None or self._route.shape != route.shape or \
+                not np.array_equal(self._route, route):
+            self._route = route.copy()
+            self._los = LosGuidance(route, lookahead_m=self.lookahead_m,
+                                    acceptance_radius_m=self.acceptance_radius_m)
+        return self._los
+
+    def act(self, t_s: float, nav_state: _F8, route: _F8, scan: LidarScan | None) -> _F8:
+        if route.shape[0] == 0:
+            self.status = GuidanceStatus(done=True)
+            return np.asarray(self.autopilot.tau(nav_state, nav_state[2], 0.0), dtype=float)
+        out = self._guidance(route).step(nav_state[:2])
+        done = bool(np.all(out.done))
+        course = float(np.asarray(out.course_rad).reshape(-1)[0])
+        self.status = GuidanceStatus(int(np.asarray(out.waypoint_index).reshape(-1)[0]),
+                                     float(np.asarray(out.cte_m).reshape(-1)[0]), course, done)
+        speed = 0.0 if done else self.speed_m_s
+        return np.asarray(self.autopilot.tau(nav_state, course, speed), dtype=float).reshape(3)
+
+
+def _rl(params: VesselParams, spec: OwnShipSpec) -> Controller:
+    try:
+        mod = importlib.import_module("asvtwin.rl.controller")
+    except ImportError as exc:
+        raise ScenarioError(
+            f"controller {spec.controller!r} needs the trained policy "
+            "(asvtwin.rl.controller.RlController), which is not available in this install: "
+            f"{exc}; use 'los' or 'los_psf' instead") from exc
+    ctrl: Controller = mod.RlController(params)
+    return ctrl
+
+
+#: Controller factories by name.
+CONTROLLERS: dict[str, Callable[[VesselParams, OwnShipSpec], Controller]] = {
+    "manual": ManualController,
+    "los": LosController,
+    "los_psf": LosController,
+    "rl": _rl,
+    "rl_psf": _rl,
+}
+
+
+def uses_filter(name: str) -> bool:
+    """Whether controller ``name`` runs through the predictive safety filter."""
+    return name.endswith("_psf")
+
+
+def make_controller(name: str, params: VesselParams, spec: OwnShipSpec) -> Controller:
+    """Build controller ``name`` (see :data:`CONTROLLERS`) for the own ship.
+
+    Raises
+    ------
+    ScenarioError
+        Unknown name, or a controller that is not installed.
+    """
+    try:
+        factory = CONTROLLERS[name]
+    except KeyError:
+        raise ScenarioError(f"own_ship.controller: unknown controller {name!r}; expected one "
+                            f"of {sorted(CONTROLLERS)}") from None
+    return factory(params, spec)

@@ -1,0 +1,717 @@
+"""The twin's runtime: one loop that joins every capability level, tick by tick.
+
+Each tick at simulation time ``t`` (period ``1 / rates.sim_hz``):
+
+1. operator commands queued since the last tick are applied (and recorded);
+2. **sources** — the simulated targets' transponders broadcast NMEA lines when due
+   (ITU-R M.1371 intervals), or a log replays them; the lines go through the real AIS
+   pipeline into the registry and the tracker's queue (L1);
+3. **LiDAR** scans the world (hulls and coast) at its rate;
+4. **tracker** fuses the scan and the AIS reports (L3);
+5. **observer** estimates τ_d from measured ν and the applied thrust; the fault detector
+   watches the residuals (L2);
+6. **controller** proposes u_L (L5); the **safety filter** (``*_psf``) turns it into u_0
+   with the tracker's predictions as moving obstacles, the coast and d̂ (L4); between
+   filter calls u_0 is held; a filter that raises is replaced by braking (never u_L);
+7. a **snapshot** is built at its rate (immutable, encoded once) and recorded;
+8. the world (ground truth, L0) advances by one step under u_0; the run is scored.
+
+Every component runs through the :class:`~asvtwin.twin.scheduler.Scheduler`: timed, its
+errors isolated and counted, its health in the snapshot; the loop never stops for one.
+Only the :class:`~asvtwin.twin.clock.Clock` reads the wall clock. Controls from another
+thread (the server) are queued and applied at the next tick boundary.
+
+Determinism: every random draw comes from generators spawned from the seed, so the same
+scenario, seed and commands give the same snapshots; :meth:`Twin.from_recording` re-runs a
+recording from its raw inputs (NMEA lines and commands) and reproduces its snapshots up to
+the wall-time measurements (:func:`comparable`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+from collections import deque
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import orjson
+from numpy.typing import ArrayLike, NDArray
+
+from asvtwin.errors import ScenarioError, SourceError, StateError
+from asvtwin.geo import Scene
+from asvtwin.scenarios import Scenario, TargetSpec, resolve_scene
+from asvtwin.sensors import Lidar, LidarConfig, LidarScan
+from asvtwin.sources.ais.source import tag_time
+from asvtwin.sources.weather import OfflineWeatherSource, WeatherForecast
+from asvtwin.twin import assemble
+from asvtwin.twin.clock import Clock
+from asvtwin.twin.components import AisInput, DisturbanceEstimator, FilterStage, Perception
+from asvtwin.twin.controllers import ManualController, make_controller, uses_filter
+from asvtwin.twin.recorder import Recorder
+from asvtwin.twin.scheduler import Scheduler
+from asvtwin.twin.snapshot import (
+    GroundTruth,
+    ObserverState,
+    OwnShip,
+    Snapshot,
+    WeatherState,
+    encode,
+    ro,
+)
+from asvtwin.twin.summary import RunMetrics, RunSummary
+from asvtwin.twin.transponders import Transponders
+from asvtwin.twin.world import World
+from asvtwin.units import KNOT_M_S
+from asvtwin.vessel import VesselParams, vessel_by_name
+
+__all__ = ["TIMING_FIELDS", "Twin", "comparable", "run_scenario"]
+
+_log = logging.getLogger(__name__)
+_F8 = NDArray[np.float64]
+
+#: Snapshot fields that measure wall time (excluded when comparing runs).
+TIMING_FIELDS = (("health",), ("filter", "solve_ms"), ("clock",))
+
+_COMPONENTS = ("ais", "weather", "lidar", "tracker", "observer", "controller", "filter",
+               "world", "scoring", "snapshot", "recorder")
+
+
+def comparable(message: bytes | dict[str, Any]) -> dict[str, Any]:
+    """A decoded snapshot without its wall-time fields (:data:`TIMING_FIELDS`)."""
+    d = orjson.loads(message) if isinstance(message, (bytes, str)) else dict(message)
+    for path in TIMING_FIELDS:
+        if len(path) == 1:
+            d.pop(path[0], None)
+        else:
+            d[path[0]] = {k: v for k, v in d[path[0]].items() if k != path[1]}
+    return d
+
+
+def own_params(scenario: Scenario) -> VesselParams:
+    """The own ship's parameters; astern thrust as the scenario allows, when the vessel
+    model offers it (:func:`asvtwin.vessel.vessel_by_name`)."""
+    p = vessel_by_name(scenario.own_ship.vessel)
+    with_astern = getattr(p, "with_astern", None)
+    if scenario.own_ship.astern and callable(with_astern):
+        p = with_astern()
+    elif not scenario.own_ship.astern and p.actuators.tau_min[0] < 0:
+        import dataclasses
+
+        act = dataclasses.replace(p.actuators, tau_min=(0.0, *p.actuators.tau_min[1:]))
+        p = dataclasses.replace(p, actuators=act)
+    return p
+
+
+class Twin:
+    """The digital twin of one scenario: world, sensors, estimators, controller, filter.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    seed : int, optional
+        Seed of every random draw; the scenario's by default.
+    clock : Clock, optional
+        Pacing; ``Clock("max")`` (as fast as possible) by default.
+    record_path : path or binary stream, optional
+        Record the run to this MCAP file.
+    psf_backend : str
+        Safety filter backend (``"auto"``: the fastest installed).
+    record_max_bytes : int, optional
+        Stop recording (as on a full disk) past this file size.
+    record_chunk_bytes : int
+        MCAP chunk size (the unit that survives a crash or full disk).
+    inputs : RecordedInputs, optional
+        Raw inputs of a recording to replay instead of the live sources (see
+        :meth:`from_recording`).
+    """
+
+    def __init__(self, scenario: Scenario, *, seed: int | None = None, clock: Clock | None = None,
+                 record_path: str | Path | Any | None = None, psf_backend: str = "auto",
+                 record_max_bytes: int | None = None, record_chunk_bytes: int = 1 << 20,
+                 inputs: RecordedInputs | None = None) -> None:
+        self.scenario = scenario
+        self.seed = int(scenario.seed if seed is None else seed)
+        self.clock = clock or Clock("max", start_time_utc=scenario.start_time_utc)
+        if self.clock.start_time_utc is None:
+            self.clock.start_time_utc = scenario.start_time_utc
+        self.scene: Scene = resolve_scene(scenario)
+        self.epoch_unix_s = scenario.start_time_utc.timestamp()
+        rng_env, rng_lidar, rng_ais, rng_nav, _ = (
+            np.random.default_rng(s) for s in np.random.SeedSequence(self.seed).spawn(5))
+        rates = scenario.rates
+        self.dt_s = 1.0 / rates.sim_hz
+        self.params = own_params(scenario)
+        self._inputs = inputs
+        self._events_early: list[str] = []
+        self._extra_lines: list[str] = []
+        self._file_i = 0
+        self._fault_seen: list[str] = []
+        # ---- sources at the edge: weather first (the world's wind may come from it)
+        self.weather, self.weather_source = self._open_weather()
+        self.world = World(scenario, self.scene, self.params, dt_s=self.dt_s, rng=rng_env,
+                           weather_wind=self._wind_from_weather(0.0))
+        t = self.world.table
+        self.transponders = Transponders(
+            t.mmsi, t.ais_class, t.names, t.ship_type, t.length_m, t.beam_m,
+            frame=self.scene.frame, epoch_unix_s=self.epoch_unix_s, rng=rng_ais)
+        self.ais_mode = scenario.ais.mode
+        self._file_lines = self._open_ais_file() if self.ais_mode == "file" else None
+        if self.ais_mode == "live":
+            raise ScenarioError("ais.mode 'live' is not run by the twin's runtime yet; "
+                                "record the feed with 'asvtwin ais record' and use mode 'file'")
+        self.ais_feed_alive = self.ais_mode in ("synthetic", "file")
+        self.ais = AisInput(self.scene, epoch_unix_s=self.epoch_unix_s)
+        # ---- the twin's own components
+        s = scenario.sensors
+        self.lidar = Lidar(LidarConfig(n_rays=s.lidar_rays, max_range_m=s.lidar_range_m,
+                                       range_std_m=s.lidar_noise_m))
+        self._rng_lidar = rng_lidar
+        self.perception = Perception(self.scene)
+        self.estimator = DisturbanceEstimator(self.params, dt_s=1.0 / rates.observer_hz,
+                                              rng=rng_nav)
+        self.controller_name = scenario.own_ship.controller
+        self.controller = make_controller(self.controller_name, self.params, scenario.own_ship)
+        self.psf_backend = psf_backend
+        self.filter_enabled = uses_filter(self.controller_name)
+        self.filter: FilterStage | None = None
+        if self.filter_enabled:
+            self.filter = FilterStage(self.params, self.scene, backend=psf_backend,
+                                      tracker_q=self.perception.tracker.config.q)
+        start = scenario.own_ship.start.to_ned(self.scene.frame)
+        self.route = np.vstack([start[None]] + [p.to_ned(self.scene.frame)[None]
+                                                for p in scenario.own_ship.route])
+        # ---- scheduler
+        self.scheduler = sch = Scheduler(self.clock)
+        periods = {"ais": 0.0, "weather": 60.0, "lidar": 1.0 / s.lidar_rate_hz,
+                   "tracker": 1.0 / rates.tracker_hz, "observer": 1.0 / rates.observer_hz,
+                   "controller": 1.0 / rates.controller_hz, "filter": 1.0 / rates.filter_hz,
+                   "world": 0.0, "scoring": 0.0, "snapshot": 1.0 / rates.snapshot_hz,
+                   "recorder": 1.0 / rates.snapshot_hz}
+        for name in _COMPONENTS:
+            sch.add(name, periods[name])
+        # ---- state carried between ticks
+        self.tick = 0
+        self.t_s = 0.0
+        x0 = self.world.own_state
+        self.u_L = np.asarray(self.controller.act(0.0, x0, self.route, None), float)
+        self.u_0 = self.u_L.copy()
+        self.scan: LidarScan | None = None
+        self._scan_new: LidarScan | None = None
+        self._past: deque[tuple[float, float]] = deque(maxlen=240)
+        self._events: list[str] = []
+        self._commands: list[tuple[str, dict[str, Any]]] = []
+        self._lock = threading.Lock()
+        self._latest: Snapshot | None = None
+        self._latest_bytes: bytes | None = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._wall = 0.0
+        self._last_line_t = 0.0
+        self._summary: RunSummary | None = None
+        self.on_snapshot: Callable[[Snapshot, bytes], None] | None = None
+        self.metrics = RunMetrics(
+            list(self.world.table.names), own_length_m=self.params.length,
+            own_beam_m=self.params.beam,
+            land=self.scene.land, near_coast_m=max(4.0 * self.params.length, 50.0),
+            gate_m=max(2.0 * self.params.length, 10.0),
+            observer_settle_s=3.0 * max(self.estimator.observer.gains.convergence_90_s))
+        # ---- recorder
+        self.recorder: Recorder | None = None
+        if record_path is not None:
+            self.recorder = Recorder(record_path, scenario_json=scenario.model_dump_json(),
+                                     seed=self.seed, epoch_unix_s=self.epoch_unix_s,
+                                     chunk_size=record_chunk_bytes, max_bytes=record_max_bytes)
+            if self.weather is not None:
+                self.recorder.write_json("/twin/weather", 0.0, {"t_s": 0.0, "source": self.weather.source})
+
+    # ================================================================ sources at the edge
+    def _open_weather(self) -> tuple[WeatherForecast | None, str]:
+        w = self.scenario.weather
+        try:
+            if w.mode == "fixture":
+                return OfflineWeatherSource().fetch(), "fixture"
+            if w.mode == "file":
+                return OfflineWeatherSource(w.path).fetch(), str(w.path)
+            from asvtwin.sources.weather import MetNoClient
+
+            return MetNoClient().fetch(), "met.no"  # the live service (network at the edge)
+        except Exception as exc:  # noqa: BLE001 - a missing forecast degrades, not kills
+            self._events_early = [f"weather unavailable ({exc}); running without weather"]
+            return None, "none"
+
+    def _weather_at(self, t_s: float) -> Any:
+        if self.weather is None:
+            return None
+        return self.weather.series.at_sim_time(t_s, epoch_unix_s=self.epoch_unix_s)
+
+    def _wind_from_weather(self, t_s: float) -> tuple[float, float] | None:
+        w = self._weather_at(t_s)
+        if w is None or w.wind_speed_m_s is None or w.wind_from_rad is None:
+            return None
+        return float(w.wind_speed_m_s), float(w.wind_from_rad)
+
+    def _open_ais_file(self) -> list[tuple[float, str]]:
+        path = Path(str(self.scenario.ais.path))
+        try:
+            raw = path.read_bytes().splitlines()
+        except OSError as exc:
+            raise SourceError(f"ais.path {path}: cannot read the NMEA log: {exc}") from exc
+        times = [tag_time(r) for r in raw]
+        t0 = next((t for t in times if t is not None), None)
+        out, last = [], 0.0
+        for r, t in zip(raw, times, strict=True):
+            if t is not None and t0 is not None:
+                last = t - t0
+            out.append((last, r.decode("ascii", "replace")))
+        return out
+
+    # ================================================================ thread-safe controls
+    def _queue(self, command: str, **args: Any) -> None:
+        with self._lock:
+            self._commands.append((command, args))
+
+    def pause(self) -> None:
+        """Pause at the next tick boundary."""
+        self.clock.pause()
+        self._queue("pause")
+
+    def resume(self) -> None:
+        """Resume at the current speed."""
+        self.clock.resume()
+        self._queue("resume")
+
+    def set_speed(self, factor: float | str) -> None:
+        """Speed factor (1 = real time) or ``"max"``."""
+        self.clock.set_speed(factor)
+        self._queue("set_speed", factor=factor)
+
+    def step_once(self, n_ticks: int = 1) -> None:
+        """Run ``n_ticks`` ticks while paused."""
+        self.clock.step(n_ticks)
+
+    def set_filter_enabled(self, enabled: bool) -> None:
+        """Switch the safety filter in or out between u_L and the thrusters."""
+        self._queue("set_filter_enabled", enabled=bool(enabled))
+
+    def set_route(self, waypoints_ned: ArrayLike) -> None:
+        """New route from the current position through ``waypoints_ned`` (k, 2) [m]."""
+        w = np.asarray(waypoints_ned, dtype=float)
+        if w.ndim != 2 or w.shape[1] != 2 or w.shape[0] < 1 or not np.isfinite(w).all():
+            raise StateError(f"waypoints must be a finite (k, 2) array [north_m, east_m] with "
+                             f"k >= 1, actually shape {w.shape}")
+        self._queue("set_route", waypoints=w.tolist())
+
+    def inject_vessel(self, spec: TargetSpec) -> None:
+        """Add a target to the world at the next tick."""
+        self._queue("inject_vessel", spec=spec.model_dump(mode="json"))
+
+    def set_wind(self, speed_m_s: float, from_deg: float) -> None:
+        """Replace the mean wind: ``speed_m_s`` [m/s] from ``from_deg`` [deg]."""
+        if not (math.isfinite(speed_m_s) and 0 <= speed_m_s <= 60 and math.isfinite(from_deg)):
+            raise StateError(f"wind speed must be in [0, 60] m/s and direction finite, "
+                             f"actually: {speed_m_s}, {from_deg}")
+        self._queue("set_wind", speed_m_s=float(speed_m_s), from_deg=float(from_deg))
+
+    def set_manual_thrust(self, tau: ArrayLike) -> None:
+        """Thrust [N, N, Nm] held by the ``manual`` controller."""
+        if not isinstance(self.controller, ManualController):
+            raise StateError(f"manual thrust needs controller 'manual', this twin runs "
+                             f"{self.controller_name!r}")
+        self._queue("set_manual_thrust", tau=np.asarray(tau, float).reshape(-1).tolist())
+
+    def set_ais_feed(self, alive: bool) -> None:
+        """Cut (False) or restore (True) the AIS feed, as a lost link would."""
+        self._queue("set_ais_feed", alive=bool(alive))
+
+    def feed_nmea(self, lines: list[str]) -> None:
+        """Raw NMEA lines received at the next tick (a second receiver, or a test)."""
+        self._queue("feed_nmea", lines=[str(x) for x in lines])
+
+    def _apply(self, command: str, args: dict[str, Any]) -> None:
+        t = self.t_s
+        if command == "set_filter_enabled":
+            on = bool(args["enabled"])
+            if on and self.filter is None:
+                self.filter = FilterStage(self.params, self.scene, backend=self.psf_backend,
+                                          tracker_q=self.perception.tracker.config.q)
+            self.filter_enabled = on
+        elif command == "set_route":
+            w = np.asarray(args["waypoints"], dtype=float)
+            self.route = np.vstack([self.world.own_state[None, :2], w])
+        elif command == "inject_vessel":
+            spec = TargetSpec.model_validate(args["spec"])
+            i = self.world.inject(spec)
+            self.transponders.add([spec.mmsi], [spec.ais_class if spec.mmsi else None],
+                                  [spec.name], [spec.ais_ship_type], [spec.length_m],
+                                  [spec.beam_m], t_s=t)
+            self.metrics.add_target(spec.name)
+            self._events.append(f"t={t:.1f} s: vessel {spec.name} injected (target {i})")
+        elif command == "set_wind":
+            self.world.set_wind(args["speed_m_s"], math.radians(args["from_deg"]))
+        elif command == "set_manual_thrust":
+            assert isinstance(self.controller, ManualController)
+            self.controller.set_tau(args["tau"])
+        elif command == "set_ais_feed":
+            self.ais_feed_alive = bool(args["alive"])
+            if not self.ais_feed_alive:
+                self.scheduler.note("ais", f"AIS feed cut at t={t:.1f} s")
+        elif command == "feed_nmea":
+            self._extra_lines.extend(args["lines"])
+        if command not in ("pause", "resume", "set_speed"):
+            self._events.append(f"t={t:.1f} s: {command}")
+
+    def _take_commands(self) -> None:
+        with self._lock:
+            cmds, self._commands = self._commands, []
+        if self._inputs is not None:  # a re-run: the recording's commands, same ticks
+            cmds = [c for c in cmds if c[0] in ("pause", "resume", "set_speed")]
+            cmds += self._inputs.commands.get(self.tick, [])
+        for name, args in cmds:
+            if self.recorder is not None:
+                self.recorder.write_json("/twin/commands", self.t_s, {
+                    "t_s": self.t_s, "tick": self.tick, "command": name, "args": args})
+            try:
+                self._apply(name, args)
+            except Exception as exc:  # noqa: BLE001 - a bad command never stops the twin
+                self._events.append(f"t={self.t_s:.1f} s: command {name} refused: {exc}")
+                _log.warning("command %s refused: %s", name, exc)
+
+    # ================================================================ the tick
+    def _ais_lines(self, t: float, truth: _F8) -> list[str]:
+        lines: list[str] = []
+        if self._inputs is not None:
+            lines = list(self._inputs.nmea.get(self.tick, []))
+        elif self.ais_feed_alive and self.ais_mode == "synthetic":
+            lines = self.transponders.step(t, truth)
+        elif self.ais_feed_alive and self._file_lines is not None:
+            i = self._file_i
+            while i < len(self._file_lines) and self._file_lines[i][0] <= t + 1e-9:
+                lines.append(self._file_lines[i][1])
+                i += 1
+            self._file_i = i
+        lines += self._extra_lines
+        self._extra_lines = []
+        if lines and self.recorder is not None:
+            self.recorder.write_json("/twin/nmea", t, {"t_s": t, "tick": self.tick, "lines": lines})
+        return lines
+
+    def step(self) -> Snapshot:
+        """Run one tick; return the latest snapshot (built at the snapshot rate)."""
+        sch = self.scheduler
+        t = self.t_s = self.tick * self.dt_s
+        self._take_commands()
+        own = self.world.own_state
+        truth = self.world.target_states
+
+        # 2. sources
+        if sch.due("ais", t):
+            lines = self._ais_lines(t, truth)
+            sch.call("ais", t, self.ais.step, t, lines)
+            if lines:
+                self._last_line_t = t
+            elif self.ais_feed_alive and self.ais_mode != "off" and t - self._last_line_t > 120.0 \
+                    and any(c is not None for c in self.world.table.ais_class):
+                sch.note("ais", "no NMEA line for more than 120 s (feed silent)")
+        if sch.due("weather", t):
+            sch.call("weather", t, self._weather_step, t)
+        # 3. LiDAR
+        if sch.due("lidar", t):
+            ok, scan = sch.call("lidar", t, self.lidar.scan, own, truth, self.world.table.length_m,
+                                self.world.table.beam_m, self.scene.land, self._rng_lidar, t_s=t)
+            if ok and scan is not None:
+                self.scan = self._scan_new = scan
+        # 4. tracker
+        if sch.due("tracker", t):
+            ok, _ = sch.call("tracker", t, self.perception.step, t, self._scan_new, self.ais.take())
+            self._scan_new = None
+            sch.call("scoring", t, self.metrics.tracking, self.perception.tracks, truth)
+        # 5. observer and fault detector
+        if sch.due("observer", t):
+            sch.call("observer", t, self._observer_step, t, own)
+        # 6. controller and filter
+        if sch.due("controller", t):
+            ok, u = sch.call("controller", t, self.controller.act, t, own, self.route, self.scan)
+            if ok and u is not None and np.isfinite(u).all():
+                self.u_L = np.asarray(u, float).reshape(3)
+            if not self.filter_enabled:
+                self.u_0 = self.u_L.copy()
+        if self.filter_enabled and self.filter is not None and sch.due("filter", t):
+            ok, res = sch.call("filter", t, self.filter.step, t, own, self.u_L,
+                               self.perception.tracks, self.estimator.d_hat)
+            if ok and res is not None:
+                self.u_0 = np.asarray(res.u0, float)
+            else:
+                self.u_0 = self.filter.emergency(t, own)
+        # 7. snapshot (state at t, decisions at t)
+        if sch.due("snapshot", t):
+            ok, snap = sch.call("snapshot", t, self._build_snapshot, t, own, truth)
+            if ok and snap is not None:
+                sch.call("recorder", t, self._publish, snap)
+        # 8. world
+        ok, _ = sch.call("world", t, self.world.step, self.u_0)
+        if not ok:
+            raise StateError(f"the world's simulation failed at t={t:.2f} s: "
+                             f"{sch.stats('world').last_error}")
+        ok, ev = sch.call("scoring", t, self.metrics.truth, t, self.world.own_state,
+                          self.world.target_states, self.world.table.length_m,
+                          self.world.table.beam_m)
+        if ok and ev:
+            self._events.extend(ev)
+        st = getattr(self.controller, "status", None)
+        if st is not None:
+            self.metrics.cte(st.cte_m)
+        self.tick += 1
+        self.t_s = self.tick * self.dt_s
+        return self._latest if self._latest is not None else self._build_snapshot(t, own, truth)
+
+    def _weather_step(self, t: float) -> None:
+        if self.recorder is not None and self.weather is not None and t > 0:
+            self.recorder.write_json("/twin/weather", t, {"t_s": t, "source": self.weather.source})
+
+    def _observer_step(self, t: float, own: _F8) -> None:
+        est = self.estimator
+        nu = est.measure(own[3:6])
+        tau = self.world.own.thrust[0]
+        before = est.nan_inputs
+        est.step(t, nu, tau)
+        if est.nan_inputs > before:
+            self.scheduler.note("observer", "velocity measurements were NaN; d̂ held "
+                                "(see observer invalid_samples)")
+        self.metrics.observer(t, est.d_hat, self.world.d_true, est.valid)
+        for e in est.events[len(self._fault_seen):]:
+            self._events.append(e)
+        self._fault_seen = list(est.events)
+
+    # ================================================================ snapshot
+    def _build_snapshot(self, t: float, own: _F8, truth: _F8) -> Snapshot:
+        sc = self.scene
+        tb = self.world.table
+        lat, lon = sc.frame.to_wgs84(own[0], own[1])
+        v = assemble.ground_velocity(own)
+        if not self._past or t - self._past[-1][0] >= 1.0:
+            self._past.append((t, own[0], own[1]))  # type: ignore[arg-type]
+        st = getattr(self.controller, "status", None)
+        ownship = OwnShip(
+            vessel=self.scenario.own_ship.vessel, length_m=self.params.length,
+            beam_m=self.metrics.own_beam_m, state=ro(own), lat_deg=float(lat), lon_deg=float(lon),
+            sog_m_s=float(np.hypot(*v)), cog_rad=float(np.arctan2(v[1], v[0])),
+            tau_cmd=ro(self.u_0), tau_applied=ro(self.world.own.applied_thrust[0]),
+            route=ro(self.route, shape=(-1, 2)),
+            waypoint_index=int(st.waypoint_index) if st else 0,
+            cte_m=float(st.cte_m) if st else math.nan, controller=self.controller_name,
+            goal_reached=bool(st.done) if st else False,
+            past_track=ro([p[1:] for p in self._past], shape=(-1, 2)))
+        gt = GroundTruth(ids=ro(np.arange(len(truth)), np.int64), names=tuple(tb.names),
+                         mmsi=ro([-1 if m is None else m for m in tb.mmsi], np.int64),
+                         state=ro(truth, shape=(-1, 6)), length_m=ro(tb.length_m),
+                         beam_m=ro(tb.beam_m))
+        est = self.estimator
+        obs = ObserverState(d_hat=ro(est.d_hat), d_true=ro(self.world.d_true),
+                            fault=est.fault_kind is not None, fault_kind=est.fault_kind,
+                            fault_channel=est.fault_channel,
+                            fault_confidence=est.fault_confidence, valid=est.valid)
+        f = self.filter
+        horizon = (f.N * f.dt_s) if f is not None else 60.0 * math.sqrt(self.params.length / 1.255)
+        pred_times = np.linspace(0.0, horizon, 7)
+        filt = assemble.filter_part(
+            f.last if (f is not None and self.filter_enabled) else None,
+            enabled=self.filter_enabled, t_s=t, u_L=self.u_L, u_0=self.u_0,
+            dt_s=f.dt_s if f else 0.0, d_safe_m=f.psf.d_safe_m if f else 0.0,
+            calls=f.calls if f else 0, interventions=f.interventions if f else 0,
+            fallbacks=sum(f.fallbacks.values()) if f else 0)
+        w = self._weather_at(t)
+        cur = self.world.env_state.current_ned_m_s
+        weather = WeatherState(
+            source=self.weather.source if self.weather is not None else "none",
+            wind_speed_m_s=math.nan if w is None or w.wind_speed_m_s is None else w.wind_speed_m_s,
+            wind_from_rad=math.nan if w is None or w.wind_from_rad is None else w.wind_from_rad,
+            air_temperature_c=math.nan if w is None or w.air_temperature_c is None
+            else w.air_temperature_c,
+            pressure_hpa=math.nan if w is None or w.air_pressure_pa is None
+            else w.air_pressure_pa / 100.0,
+            current_m_s=ro(cur),
+            age_s=math.nan if w is None else self.epoch_unix_s + t - w.t_unix_s)
+        events, self._events = tuple(self._events), []
+        counters = {"ais_lines": self.ais.lines, "ais_reports": self.ais.reports,
+                    **{f"ais_error_{k}": v for k, v in self.ais.errors().items()},
+                    "observer_nan_inputs": est.nan_inputs, "ticks": self.tick,
+                    **{f"tracker_{k}": v for k, v in self.perception.tracker.counters.items()
+                       if k in ("tracks_created", "tracks_deleted", "ais_rejected")}}
+        return Snapshot(
+            seq=self.tick, t_s=t, scenario=self.scenario.name, clock=self.clock.state(t),
+            own=ownship, truth=gt, ais=assemble.ais_part(self.ais.targets(t), sc.frame),
+            lidar=assemble.lidar_part(self.scan, sc.land,
+                                      self.perception.tracker.config.cluster.coast_margin_m),
+            ellipses=assemble.ellipses_part(self.perception.ellipses()),
+            tracks=assemble.tracks_part(self.perception.tracks, t, own, pred_times,
+                                        self.perception.tracker.config.q),
+            observer=obs, filter=filt, weather=weather, health=self.scheduler.health(),
+            events=events, counters=counters)
+
+    def _publish(self, snap: Snapshot) -> None:
+        data = encode(snap)
+        with self._lock:
+            self._latest, self._latest_bytes = snap, data
+        rec = self.recorder
+        if rec is not None and rec.active:
+            rec.write("/twin/snapshot", snap.t_s, data)
+            if rec.error is not None:
+                self.scheduler.note("recorder", rec.error)
+                self._events.append(f"t={snap.t_s:.1f} s: {rec.error}")
+        if self.on_snapshot is not None:
+            self.on_snapshot(snap, data)
+
+    # ================================================================ running
+    def latest(self) -> Snapshot:
+        """The last snapshot built (one is built now if none exists yet)."""
+        with self._lock:
+            s = self._latest
+        if s is None:
+            s = self._build_snapshot(self.t_s, self.world.own_state, self.world.target_states)
+        return s
+
+    def latest_bytes(self) -> bytes | None:
+        """The last snapshot as encoded JSON (what the recorder and server send)."""
+        with self._lock:
+            return self._latest_bytes
+
+    def run(self, duration_s: float | None = None, *,
+            progress: Callable[[float, float], None] | None = None) -> RunSummary:
+        """Run until ``duration_s`` (the scenario's by default) or :meth:`stop`; close the
+        recording and return the summary. ``progress(t_s, duration_s)`` is called about
+        every 5 % of the run."""
+        end = float(self.scenario.duration_s if duration_s is None else duration_s)
+        n_end = int(round(end / self.dt_s))
+        w0 = self.clock.perf()
+        every = max(1, n_end // 20)
+        try:
+            while self.tick < n_end and not self._stop.is_set():
+                if not self.clock.wait_for_tick(self.tick * self.dt_s):
+                    break
+                self.step()
+                if progress is not None and self.tick % every == 0:
+                    progress(self.t_s, end)
+        finally:
+            self._wall += self.clock.perf() - w0
+            self._summary = self.summary()
+            self.close()
+        return self._summary
+
+    def start_background(self, duration_s: float | None = None) -> threading.Thread:
+        """Run :meth:`run` in a daemon thread (for the server); :meth:`stop` ends it."""
+        if self._thread is not None and self._thread.is_alive():
+            raise StateError("the twin is already running in the background")
+        self._stop.clear()
+        self._thread = threading.Thread(target=self.run, args=(duration_s,), daemon=True,
+                                        name=f"twin-{self.scenario.name}")
+        self._thread.start()
+        return self._thread
+
+    def stop(self, timeout_s: float = 10.0) -> None:
+        """Stop the loop after the current tick and wait for the thread."""
+        self._stop.set()
+        self.clock.stop()
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+
+    def close(self) -> None:
+        """Write the summary into the recording and finish the file."""
+        rec = self.recorder
+        if rec is not None and not rec.closed:
+            if rec.active:
+                s = self._summary or self.summary()
+                rec.write_json("/twin/summary", self.t_s, s.to_dict())
+            rec.close()
+            if rec.error is not None:
+                self.scheduler.note("recorder", rec.error)
+
+    def summary(self) -> RunSummary:
+        """The run so far, scored against ground truth."""
+        f = self.filter
+        sch = self.scheduler
+        deg = list(sch.degradations())
+        if f is not None and f.fallbacks:
+            deg.append(f"filter fell back {sum(f.fallbacks.values())} times in {f.calls} calls "
+                       f"({', '.join(f'{k} {v}' for k, v in sorted(f.fallbacks.items()))}); "
+                       "u_L was never applied unfiltered")
+        if self.recorder is not None and self.recorder.error is not None and \
+                not any(d.startswith("recorder") for d in deg):
+            deg.append(f"recorder degraded: {self.recorder.error}")
+        deg.extend(self._events_early)
+        st = getattr(self.controller, "status", None)
+        ticks = self.tick
+        sim_s = ticks * self.dt_s
+        counters = {"ais_lines": self.ais.lines, "ais_reports": self.ais.reports,
+                    **{f"ais_error_{k}": v for k, v in self.ais.errors().items()},
+                    "observer_nan_inputs": self.estimator.nan_inputs,
+                    "clock_lag_resets": self.clock.lag_resets,
+                    "recorded_messages": self.recorder.messages if self.recorder else 0}
+        rec_path = None
+        if self.recorder is not None and self.recorder.path is not None:
+            rec_path = str(self.recorder.path)
+        return self.metrics.summarise(
+            criteria=self.scenario.criteria, goal_reached=bool(st.done) if st else False,
+            scenario=self.scenario.name, seed=self.seed, duration_s=sim_s, ticks=ticks,
+            wall_s=self._wall, realtime_factor=sim_s / self._wall if self._wall > 0 else math.inf,
+            filter_calls=f.calls if f else 0, interventions=f.interventions if f else 0,
+            fallbacks=dict(f.fallbacks) if f else {}, ms_per_tick=sch.ms_per_tick(ticks),
+            degradations=tuple(deg), counters=counters, recording=rec_path)
+
+    # ================================================================ re-running a recording
+    @classmethod
+    def from_recording(cls, path: str | Path, **kwargs: Any) -> Twin:
+        """A twin that re-runs a recording from its raw inputs (NMEA lines, commands) and
+        seed; its snapshots equal the recorded ones up to :data:`TIMING_FIELDS`."""
+        from asvtwin.twin.replay import Recording
+
+        rec = Recording(path)
+        if rec.scenario is None:
+            raise SourceError(f"{path}: the recording holds no scenario")
+        scenario = Scenario.model_validate_json(orjson.dumps(rec.scenario))
+        return cls(scenario, seed=rec.seed, inputs=RecordedInputs.read(rec), **kwargs)
+
+
+class RecordedInputs:
+    """The raw inputs of a recording, by tick: NMEA lines and operator commands."""
+
+    def __init__(self, nmea: dict[int, list[str]], commands: dict[int, list[tuple[str, dict[str, Any]]]]
+                 ) -> None:
+        self.nmea = nmea
+        self.commands = commands
+
+    @classmethod
+    def read(cls, rec: Any) -> RecordedInputs:
+        nmea: dict[int, list[str]] = {}
+        for _, data in rec.iter_messages(topic="/twin/nmea"):
+            m = orjson.loads(data)
+            nmea.setdefault(int(m["tick"]), []).extend(m["lines"])
+        cmds: dict[int, list[tuple[str, dict[str, Any]]]] = {}
+        for _, data in rec.iter_messages(topic="/twin/commands"):
+            m = orjson.loads(data)
+            if m["command"] not in ("pause", "resume", "set_speed"):
+                cmds.setdefault(int(m["tick"]), []).append((m["command"], m["args"]))
+        return cls(nmea, cmds)
+
+
+def run_scenario(scenario: Scenario, *, seed: int | None = None, duration_s: float | None = None,
+                 out_dir: str | Path | None = None, record: bool = True,
+                 psf_backend: str = "auto", clock: Clock | None = None,
+                 progress: Callable[[float, float], None] | None = None) -> RunSummary:
+    """Run a scenario headless; with ``out_dir``, write ``run.mcap`` (when ``record``) and
+    ``summary.json`` there."""
+    rec_path = None
+    if out_dir is not None:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        if record:
+            rec_path = out / "run.mcap"
+    twin = Twin(scenario, seed=seed, clock=clock, record_path=rec_path, psf_backend=psf_backend)
+    summary = twin.run(duration_s, progress=progress)
+    if out_dir is not None:
+        (Path(out_dir) / "summary.json").write_bytes(
+            orjson.dumps(summary.to_dict(), option=orjson.OPT_INDENT_2))
+    return summary
