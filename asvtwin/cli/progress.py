@@ -79,8 +79,9 @@ class CompileProgress:
             self._ticker.join()
             self._write("\r\x1b[K")
         if self.t0 is not None:
-            self._write(f"asvtwin: compiled {self.compiled} kernels in {self.elapsed_s:.0f} s; "
-                        "later runs load them from the cache\n")
+            n = self.compiled
+            self._write(f"asvtwin: compiled {n} kernel{'' if n == 1 else 's'} in "
+                        f"{self.elapsed_s:.0f} s; later runs load them from the cache\n")
 
     def _write(self, text: str) -> None:
         try:

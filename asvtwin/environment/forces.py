@@ -12,6 +12,9 @@ Current
 
     so an unpowered vessel drifts with the current (ν → ν_c), as it should (Fossen 2011,
     §8.3, irrotational current, with the rigid-body/added-mass split folded together).
+    Both terms come from the vessel kernel's n(ν) = C(ν)ν + D(ν)ν
+    (:func:`asvtwin.vessel.kernels.hydrodynamic_force`), the one place the simulator, the
+    safety filter and the observer share, in one compiled pass over the vessels.
 
 Wind (Fossen 2011 §8.1, Isherwood-type coefficients)
     .. math::
@@ -33,10 +36,14 @@ Wave drift
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from asvtwin.vessel.model import coriolis, damping
+from asvtwin.errors import StateError
+from asvtwin.vessel.kernels import hydrodynamic_force
 from asvtwin.vessel.params import VesselParams
 
 __all__ = [
@@ -71,6 +78,44 @@ def _body_components(psi: NDArray[np.float64], vec_ned: NDArray[np.float64]
     return c * vec_ned[:, 0] + s * vec_ned[:, 1], -s * vec_ned[:, 0] + c * vec_ned[:, 1]
 
 
+_PACKED: dict[int, tuple[VesselParams, NDArray[np.float64]]] = {}
+
+
+def _packed(params: VesselParams) -> NDArray[np.float64]:
+    """The kernels' coefficient row (1, 27) of a parameter set.
+
+    Parameter sets are immutable, so the row is kept per object (by identity: hashing a
+    30-field dataclass would cost more than the force itself); at most 64 are kept."""
+    hit = _PACKED.get(id(params))
+    if hit is not None and hit[0] is params:
+        return hit[1]
+    P = np.ascontiguousarray(params.packed()[None, :])
+    P.flags.writeable = False
+    if len(_PACKED) >= 64:
+        _PACKED.clear()
+    _PACKED[id(params)] = (params, P)
+    return P
+
+
+@njit(cache=True)
+def _current_force_batch(x, vc, P, out):  # pragma: no cover - compiled
+    shared_v = vc.shape[0] == 1
+    for i in range(x.shape[0]):
+        j = 0 if shared_v else i
+        c = math.cos(x[i, 2])
+        s = math.sin(x[i, 2])
+        # ν_c = R(ψ)ᵀ [V_N, V_E, 0]
+        uc = c * vc[j, 0] + s * vc[j, 1]
+        vcb = -s * vc[j, 0] + c * vc[j, 1]
+        u, v, r = x[i, 3], x[i, 4], x[i, 5]
+        # τ_d,c = n(ν) − n(ν_r), n(ν) = C(ν)ν + D(ν)ν
+        a0, a1, a2 = hydrodynamic_force(u, v, r, P[0])
+        b0, b1, b2 = hydrodynamic_force(u - uc, v - vcb, r, P[0])
+        out[i, 0] = a0 - b0
+        out[i, 1] = a1 - b1
+        out[i, 2] = a2 - b2
+
+
 def current_force(params: VesselParams, x: ArrayLike, current_ned_m_s: ArrayLike
                   ) -> NDArray[np.float64]:
     """τ_d of an ocean current (n, 3) [N, N, Nm].
@@ -78,23 +123,28 @@ def current_force(params: VesselParams, x: ArrayLike, current_ned_m_s: ArrayLike
     Parameters
     ----------
     params : VesselParams
-    x : array_like, (n, 6)
-        States [x, y, ψ, u, v, r].
+    x : array_like, (n, 6) or (6,)
+        States [x, y, ψ, u, v, r] [m, m, rad, m/s, m/s, rad/s].
     current_ned_m_s : array_like, (2,) or (n, 2)
         Current velocity over ground [V_N, V_E] [m/s].
+
+    Examples
+    --------
+    >>> from asvtwin.vessel import cybership2
+    >>> # drifting with a 0.1 m/s northward current: no relative flow, no force
+    >>> current_force(cybership2(), [0, 0, 0, 0.1, 0, 0], [0.1, 0.0])
+    array([[0., 0., 0.]])
     """
-    x = np.atleast_2d(np.asarray(x, dtype=float))
-    vc = np.broadcast_to(np.asarray(current_ned_m_s, dtype=float), (x.shape[0], 2))
-    nu = x[:, 3:6]
-    uc, vcb = _body_components(x[:, 2], vc)
-    nu_r = nu.copy()
-    nu_r[:, 0] -= uc
-    nu_r[:, 1] -= vcb
-
-    def hydro(n: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.einsum("nij,nj->ni", coriolis(params, n) + damping(params, n), n)
-
-    return hydro(nu) - hydro(nu_r)
+    x = np.ascontiguousarray(np.atleast_2d(np.asarray(x, dtype=np.float64)))
+    vc = np.ascontiguousarray(np.atleast_2d(np.asarray(current_ned_m_s, dtype=np.float64)))
+    if x.ndim != 2 or x.shape[1] != 6:
+        raise StateError(f"x must have shape (n, 6), actually: {x.shape}")
+    if vc.ndim != 2 or vc.shape[1] != 2 or vc.shape[0] not in (1, x.shape[0]):
+        raise StateError(f"current_ned_m_s must have shape (2,) or ({x.shape[0]}, 2), "
+                         f"actually: {np.shape(current_ned_m_s)}")
+    out = np.empty((x.shape[0], 3))
+    _current_force_batch(x, vc, _packed(params), out)
+    return out
 
 
 def wind_force(params: VesselParams, x: ArrayLike, wind_ned_m_s: ArrayLike, *,

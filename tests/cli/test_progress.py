@@ -1,0 +1,60 @@
+"""First runs compile kernels: "compiling kernels, first run only" is said once, and
+nothing is said when the cache is warm."""
+
+from __future__ import annotations
+
+import io
+import subprocess
+import sys
+import textwrap
+
+import numba
+
+from asvtwin.cli.progress import compile_notice
+
+
+def test_a_compilation_is_announced_once_with_a_summary():
+    stream = io.StringIO()
+    with compile_notice(stream) as progress:
+        @numba.njit(cache=False)
+        def f(x):
+            return x + 1
+
+        @numba.njit(cache=False)
+        def g(x):
+            return f(x) * 2
+
+        assert g(1) == 4
+    text = stream.getvalue()
+    assert text.count("compiling kernels, first run only") == 1
+    assert progress.compiled >= 2  # g and its callee f
+    assert f"compiled {progress.compiled} kernels in" in text
+
+
+def test_nothing_is_said_when_nothing_compiles():
+    @numba.njit(cache=False)
+    def h(x):
+        return x - 1
+
+    h(1)  # compiled outside: inside the block it is warm
+    stream = io.StringIO()
+    with compile_notice(stream) as progress:
+        assert h(2) == 1
+    assert stream.getvalue() == "" and progress.compiled == 0
+
+
+def test_the_listener_waits_for_numba_to_be_imported():
+    # a fresh interpreter: numba is imported only inside the block, through the hook
+    code = textwrap.dedent("""
+        import sys
+        from asvtwin.cli.progress import compile_notice
+        assert "numba" not in sys.modules
+        with compile_notice(sys.stdout):
+            import numba
+            assert numba.njit(lambda x: x + 1)(1) == 2
+    """)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert "compiling kernels, first run only" in proc.stdout
+    assert "compiled 1 kernel in" in proc.stdout
