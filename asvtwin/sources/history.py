@@ -6,24 +6,22 @@ write-ahead log). Reports are kept in WGS84 (latitude/longitude, SI speeds and a
 recorded session can be replayed into any scene: :func:`replay_session` re-projects them into
 the scene's NED frame and merges reports and static data in time order.
 
-Schema 2 (times are UNIX seconds). Dynamic reports arrive at up to thousands per second, so
-they are stored *columnar*, one row per appended batch (a "chunk", at most 8192 reports),
+Schema 3 (times are UNIX seconds; the tables and migrations are described in
+:mod:`asvtwin.sources.history_schema`). Dynamic reports arrive at up to thousands per second,
+so they are stored *columnar*, one row per appended batch (a "chunk", at most 8192 reports),
 instead of one SQLite row per report: a row-per-report insert with its two index entries
 costs about as much CPU as pyais's decode of the line, a chunk a few microseconds per batch.
+``columns`` holds the little-endian column arrays of :data:`_COLUMNS` one after the other
+(every field exactly as accepted, float64; NaN = not available, ``nav_status`` -1 = not
+available, ``station`` an index into the JSON list ``stations``, 0 = unknown) and ``crc32``
+its checksum, verified on every read. ``meta.max_chunk_span_s``, the widest chunk time span,
+bounds the index range a time query scans.
 
-- ``report_chunks(id, t_min_s, t_max_s, n, stations, columns)``: ``id`` is the arrival order,
-  ``columns`` the little-endian column arrays of :data:`_COLUMNS` one after the other (every
-  field exactly as accepted, float64; NaN = not available, ``nav_status`` -1 = not available,
-  ``station`` an index into the JSON list ``stations``, 0 = unknown); indexed on ``t_min_s``;
-- ``report_chunk_mmsi(mmsi, t_min_s, t_max_s, chunk)``: which chunks hold a vessel, with the
-  chunk's time span (a clustered ``WITHOUT ROWID`` table on ``(mmsi, t_min_s, chunk)``);
-- ``static(...)`` and ``weather(...)``: one row per record as in schema 1 (low rate), indexed on
-  ``(mmsi, t_unix_s)`` and ``t_unix_s``; NULL is "not available";
-- ``meta``: ``schema`` = ``"2"`` and ``max_chunk_span_s``, the widest chunk time span, which
-  bounds the index range a time query scans.
-
-A database of schema 1 (one row per report) is refused with a message, or converted in one
-transaction with ``SqliteHistory(path, migrate=True)``.
+A file is inspected read-only before anything is written: another application's database,
+a file that is not SQLite, or an older schema (without ``migrate=True``) is refused with a
+message and left untouched. ``SqliteHistory(path, readonly=True)`` opens for queries only
+(also on read-only media). Write failures (a full disk) raise :class:`SourceError`; the
+database stays consistent (each append is one transaction).
 """
 
 from __future__ import annotations
@@ -33,6 +31,7 @@ import heapq
 import json
 import os
 import sqlite3
+import zlib
 from collections.abc import Iterable, Iterator, Sequence
 from itertools import repeat
 from operator import attrgetter
@@ -43,30 +42,18 @@ from numpy.typing import NDArray
 
 from asvtwin.errors import ParameterError, SourceError
 from asvtwin.geo import LocalFrame
+from asvtwin.sources.history_schema import (
+    SCHEMA,
+    SCHEMA_VERSION,
+    inspect_file,
+    migrate_v2,
+    open_readonly,
+)
 from asvtwin.sources.ais.reports import AisReport, AisStatic, ReportBatch
 from asvtwin.sources.weather.series import WeatherSample
 
 __all__ = ["HistoryStore", "SqliteHistory", "replay_session"]
 
-_SCHEMA_VERSION = "2"
-_SCHEMA = """
-CREATE TABLE IF NOT EXISTS report_chunks (
-    id INTEGER PRIMARY KEY, t_min_s REAL NOT NULL, t_max_s REAL NOT NULL, n INTEGER NOT NULL,
-    stations TEXT NOT NULL, columns BLOB NOT NULL);
-CREATE INDEX IF NOT EXISTS report_chunks_t ON report_chunks (t_min_s);
-CREATE TABLE IF NOT EXISTS report_chunk_mmsi (
-    mmsi INTEGER NOT NULL, t_min_s REAL NOT NULL, t_max_s REAL NOT NULL, chunk INTEGER NOT NULL,
-    PRIMARY KEY (mmsi, t_min_s, chunk)) WITHOUT ROWID;
-CREATE TABLE IF NOT EXISTS static (
-    t_unix_s REAL NOT NULL, mmsi INTEGER NOT NULL, msg_type INTEGER NOT NULL, name TEXT,
-    callsign TEXT, ship_type INTEGER, imo INTEGER, to_bow_m INTEGER, to_stern_m INTEGER,
-    to_port_m INTEGER, to_starboard_m INTEGER, draught_m REAL, destination TEXT);
-CREATE INDEX IF NOT EXISTS static_mmsi_t ON static (mmsi, t_unix_s);
-CREATE TABLE IF NOT EXISTS weather (
-    t_unix_s REAL NOT NULL, wind_speed_m_s REAL, wind_from_rad REAL, air_temperature_c REAL,
-    air_pressure_pa REAL, relative_humidity REAL, cloud_fraction REAL, source TEXT);
-CREATE INDEX IF NOT EXISTS weather_t ON weather (t_unix_s);
-"""
 #: Column layout of a chunk blob: (field of ReportBatch, little-endian dtype), in this order.
 _COLUMNS: tuple[tuple[str, str], ...] = (
     ("t_unix_s", "<f8"), ("mmsi", "<i8"), ("msg_type", "<i2"), ("lat_deg", "<f8"),
@@ -162,50 +149,84 @@ class SqliteHistory:
     synchronous : str
         SQLite ``synchronous`` pragma: ``"OFF"``, ``"NORMAL"`` (default), ``"FULL"``, ``"EXTRA"``.
     migrate : bool
-        Convert a schema-1 database (one row per report) to schema 2 in one transaction
-        instead of refusing it.
+        Convert a schema-1 (one row per report) or schema-2 (no checksums) database to the
+        current schema in one transaction instead of refusing it.
+    readonly : bool
+        Open for queries only: nothing is written, not even a journal (works on read-only
+        media). Schemas 2 and 3 can be read (schema 2 without checksums to verify).
 
     Raises
     ------
     SourceError
-        If the file cannot be opened or holds another schema version (and ``migrate`` is
-        False or cannot convert it).
+        If the file cannot be opened, is not an asvtwin history (another application's
+        database, not SQLite), or holds another schema version (and ``migrate`` is False or
+        cannot convert it). Nothing is written to a refused file.
     ParameterError
         If ``synchronous`` is not one of the values above.
     """
 
     def __init__(self, path: str | os.PathLike[str] = ":memory:", *,
-                 synchronous: str = "NORMAL", migrate: bool = False) -> None:
+                 synchronous: str = "NORMAL", migrate: bool = False,
+                 readonly: bool = False) -> None:
         self.path = str(path)
+        self.readonly = bool(readonly)
         if str(synchronous).upper() not in _SYNCHRONOUS:
             raise ParameterError(f"synchronous: one of {_SYNCHRONOUS} expected, "
                                  f"actually: {synchronous!r}")
+        kind = inspect_file(self.path)  # read-only: refuses foreign files before any write
+        found = kind.schema
+        if readonly:
+            self._open_readonly(found)
+            return
+        if found is not None and found != SCHEMA_VERSION and not (
+                migrate and found in ("1", "2")):
+            hint = (f"; open it with SqliteHistory(path, migrate=True) (asvtwin ais history "
+                    f"--migrate) to convert it to schema {SCHEMA_VERSION}"
+                    if found in ("1", "2") else "")
+            raise SourceError(f"{self.path}: history schema {SCHEMA_VERSION} expected, "
+                              f"actually: {found}{hint}")
         try:
             self._db = sqlite3.connect(self.path, check_same_thread=False)
+            if found == "1":
+                self._migrate_v1()
+            elif found == "2":
+                self._migrate(migrate_v2, "2")
             if self.path != ":memory:":
                 self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute(f"PRAGMA synchronous={synchronous.upper()}")
             self._db.execute("CREATE TABLE IF NOT EXISTS meta "
                              "(key TEXT PRIMARY KEY, value TEXT NOT NULL)")
             meta = dict(self._db.execute("SELECT key, value FROM meta").fetchall())
-            found = meta.get("schema")
-            if found is None and self._db.execute(
-                    "SELECT 1 FROM sqlite_master WHERE name='reports'").fetchone():
-                found = "1?"  # a reports table without a version: not ours to write into
-            if found == "1" and migrate:
-                self._migrate_v1()
-            elif found is not None and found != _SCHEMA_VERSION:
-                hint = (" (one row per report); open it with SqliteHistory(path, migrate=True) "
-                        "to convert it" if found == "1" else "")
-                raise SourceError(f"{self.path}: history schema {_SCHEMA_VERSION} expected, "
-                                  f"actually: {found}{hint}")
-            self._db.executescript(_SCHEMA)
+            self._db.executescript(SCHEMA)
             if found is None:
-                self._db.execute("INSERT INTO meta VALUES ('schema', ?)", (_SCHEMA_VERSION,))
+                self._db.execute("INSERT INTO meta VALUES ('schema', ?)", (SCHEMA_VERSION,))
                 self._db.commit()
             self._span_s = float(meta.get("max_chunk_span_s", 0.0))
+            self._checksums = True
         except sqlite3.Error as exc:
             raise SourceError(f"cannot open history database {self.path!r}: {exc}") from exc
+
+    def _open_readonly(self, found: str | None) -> None:
+        if found is None:
+            raise SourceError(f"{self.path}: no history to read (empty or missing file)")
+        if found not in ("2", SCHEMA_VERSION):
+            raise SourceError(f"{self.path}: history schema 2 or {SCHEMA_VERSION} expected for "
+                              f"reading, actually: {found}; convert it with --migrate on a "
+                              "writable copy")
+        try:
+            self._db = open_readonly(self.path)
+            meta = dict(self._db.execute("SELECT key, value FROM meta").fetchall())
+        except sqlite3.Error as exc:
+            raise SourceError(f"cannot open history database {self.path!r} read-only: "
+                              f"{exc}") from exc
+        self._span_s = float(meta.get("max_chunk_span_s", 0.0))
+        self._checksums = found == SCHEMA_VERSION
+
+    def _write_error(self, exc: sqlite3.Error) -> SourceError:
+        full = isinstance(exc, sqlite3.OperationalError) and "full" in str(exc)
+        what = "the disk (or the database's size limit) is full" if full else str(exc)
+        return SourceError(f"cannot write to history database {self.path!r}: {what}; the "
+                           "database keeps everything appended before")
 
     # ------------------------------------------------------------------ writes
     def append_batch(self, batch: ReportBatch) -> int:
@@ -220,6 +241,9 @@ class SqliteHistory:
         ------
         ParameterError
             If a report time is not finite.
+        SourceError
+            If the database cannot be written (full disk, read-only file, ...); nothing of
+            the batch is written, everything before stays.
         """
         n = len(batch)
         try:
@@ -230,10 +254,19 @@ class SqliteHistory:
             if batch.static:
                 n += self._insert_static(batch.static)
             self._db.commit()
+        except sqlite3.Error as exc:
+            self._rollback()
+            raise self._write_error(exc) from exc
         except BaseException:
-            self._db.rollback()
+            self._rollback()
             raise
         return n
+
+    def _rollback(self) -> None:
+        try:
+            self._db.rollback()
+        except sqlite3.Error:  # the failed statement may have ended the transaction already
+            pass
 
     def _insert_chunk(self, cols: _Cols, stations: Sequence[str | None]) -> None:
         t = cols["t_unix_s"]
@@ -252,12 +285,14 @@ class SqliteHistory:
                          for name, dtype in _COLUMNS])
         t_min, t_max = float(t.min()), float(t.max())
         chunk = self._db.execute(
-            "INSERT INTO report_chunks (t_min_s, t_max_s, n, stations, columns) "
-            "VALUES (?,?,?,?,?)", (t_min, t_max, len(t), json.dumps(names), blob)).lastrowid
+            "INSERT INTO report_chunks (t_min_s, t_max_s, n, stations, columns, crc32) "
+            "VALUES (?,?,?,?,?,?)",
+            (t_min, t_max, len(t), json.dumps(names), blob, zlib.crc32(blob))).lastrowid
         # the chunk's span stands for each vessel's (cheaper; a query filters the rows anyway)
-        self._db.executemany("INSERT INTO report_chunk_mmsi VALUES (?,?,?,?)",
-                             zip(np.unique(cols["mmsi"]).tolist(), repeat(t_min), repeat(t_max),
-                                 repeat(chunk)))
+        self._db.executemany("INSERT INTO report_chunk_mmsi (mmsi, t_min_s, chunk, t_max_s) "
+                             "VALUES (?,?,?,?)",
+                             zip(np.unique(cols["mmsi"]).tolist(), repeat(t_min), repeat(chunk),
+                                 repeat(t_max)))
         if t_max - t_min > self._span_s:
             self._span_s = t_max - t_min
             self._db.execute("INSERT OR REPLACE INTO meta VALUES ('max_chunk_span_s', ?)",
@@ -273,28 +308,34 @@ class SqliteHistory:
         return len(rows)
 
     def append_static(self, records: Sequence[AisStatic]) -> int:
-        n = self._insert_static(records)
-        self._db.commit()
+        try:
+            n = self._insert_static(records)
+            self._db.commit()
+        except sqlite3.Error as exc:
+            self._rollback()
+            raise self._write_error(exc) from exc
         return n
 
     def append_weather(self, samples: Sequence[WeatherSample], *, source: str = "") -> int:
         rows = [tuple(getattr(s, f) for f in _WEATHER_FIELDS) + (source,) for s in samples]
-        self._db.executemany(f"INSERT INTO weather ({','.join(_WEATHER_FIELDS)}, source) "
-                             "VALUES (?,?,?,?,?,?,?,?)", rows)
-        self._db.commit()
+        try:
+            self._db.executemany(f"INSERT INTO weather ({','.join(_WEATHER_FIELDS)}, source) "
+                                 "VALUES (?,?,?,?,?,?,?,?)", rows)
+            self._db.commit()
+        except sqlite3.Error as exc:
+            self._rollback()
+            raise self._write_error(exc) from exc
         return len(rows)
 
     def _migrate_v1(self) -> None:
-        """Schema 1 -> 2: re-write ``reports`` as chunks, in one transaction."""
+        """Schema 1 -> 3: re-write ``reports`` as chunks."""
         nan = float("nan")
-        try:
-            cur = self._db.cursor()
-            cur.execute("BEGIN")  # DDL included: a failed or interrupted migration leaves v1
-            for statement in filter(str.strip, _SCHEMA.split(";")):
-                cur.execute(statement)
+
+        def v1(db: sqlite3.Connection) -> None:
+            for statement in filter(str.strip, SCHEMA.split(";")):
+                db.execute(statement)
             self._span_s = 0.0
-            rows_cur = self._db.execute(
-                f"SELECT {_V1_COLUMNS} FROM reports ORDER BY t_unix_s, rowid")
+            rows_cur = db.execute(f"SELECT {_V1_COLUMNS} FROM reports ORDER BY t_unix_s, rowid")
             while rows := rows_cur.fetchmany(_CHUNK_ROWS):
                 c = list(zip(*rows))
                 cols: _Cols = {name: np.array([nan if v is None else v for v in c[k]],
@@ -302,13 +343,25 @@ class SqliteHistory:
                                for k, (name, _) in enumerate(_COLUMNS[:9])}
                 cols["nav_status"] = np.array([-1 if v is None else v for v in c[9]], np.int64)
                 self._insert_chunk(cols, c[10])
-            cur.execute("DROP TABLE reports")
-            cur.execute("UPDATE meta SET value=? WHERE key='schema'", (_SCHEMA_VERSION,))
-            self._db.commit()
-        except (sqlite3.Error, ParameterError) as exc:
-            self._db.rollback()
-            raise SourceError(f"{self.path}: cannot migrate history schema 1 to "
-                              f"{_SCHEMA_VERSION}: {exc}") from exc
+            db.execute("DROP TABLE reports")
+
+        self._migrate(v1, "1")
+
+    def _migrate(self, step: Any, found: str) -> None:
+        """Run one migration in one transaction; any failure leaves the file as it was and
+        raises :class:`SourceError` (a bad value in an old row, a full disk, ...)."""
+        db = self._db
+        try:
+            db.execute("BEGIN")  # DDL included: a failed or interrupted migration changes nothing
+            step(db)
+            db.execute("UPDATE meta SET value=? WHERE key='schema'", (SCHEMA_VERSION,))
+            db.commit()
+        except (sqlite3.Error, ValueError, TypeError, OverflowError) as exc:
+            self._rollback()
+            db.close()
+            raise SourceError(f"{self.path}: cannot migrate history schema {found} to "
+                              f"{SCHEMA_VERSION} ({type(exc).__name__}: {exc}); the file is "
+                              "unchanged") from exc
 
     # ------------------------------------------------------------------ reads
     def query_reports(self, frame: LocalFrame, *, mmsi: int | None = None,
@@ -368,8 +421,13 @@ class SqliteHistory:
                         return
             if chunk is None:
                 break
-            n, names, blob = self._db.execute(
-                "SELECT n, stations, columns FROM report_chunks WHERE id = ?", (chunk,)).fetchone()
+            n, names, blob, crc = self._db.execute(
+                f"SELECT n, stations, columns, {'crc32' if self._checksums else 'NULL'} "
+                "FROM report_chunks WHERE id = ?", (chunk,)).fetchone()
+            if crc is not None and zlib.crc32(blob) != crc:
+                raise SourceError(f"{self.path}: report chunk {chunk} is corrupt (CRC-32 "
+                                  f"0x{zlib.crc32(blob):08X} of the data, 0x{crc:08X} stored); "
+                                  "restore the file from a backup")
             cols = _decode_chunk(n, blob)
             keep = np.ones(n, bool)
             if mmsi is not None:
@@ -396,7 +454,8 @@ class SqliteHistory:
             mmsi=np.array(c["mmsi"], np.int64), msg_type=np.array(c["msg_type"], np.int64),
             north_m=np.asarray(north, np.float64), east_m=np.asarray(east, np.float64),
             nav_status=np.array(c["nav_status"], np.int64),
-            station=tuple(c["station_name"].tolist()), **f8)  # type: ignore[arg-type]
+            station=tuple(c["station_name"].tolist()), frame=frame,
+            **f8)  # type: ignore[arg-type]
 
     def query_static(self, *, mmsi: int | None = None, since_unix_s: float | None = None,
                      until_unix_s: float | None = None) -> list[AisStatic]:
@@ -423,8 +482,29 @@ class SqliteHistory:
             "SELECT MIN(t_min_s), MAX(t_max_s) FROM report_chunks").fetchone()
         return None if lo is None else (float(lo), float(hi))
 
+    def check(self) -> list[str]:
+        """Verify the file: SQLite's ``PRAGMA integrity_check`` and every chunk's CRC-32.
+
+        Returns
+        -------
+        list of str
+            Problems found; empty when the file is sound.
+        """
+        problems = [r[0] for r in self._db.execute("PRAGMA integrity_check") if r[0] != "ok"]
+        if self._checksums:
+            for chunk, blob, crc in self._db.execute(
+                    "SELECT id, columns, crc32 FROM report_chunks ORDER BY id"):
+                if zlib.crc32(blob) != crc:
+                    problems.append(f"report chunk {chunk}: CRC-32 mismatch")
+        return problems
+
     def close(self) -> None:
-        self._db.commit()
+        if not self.readonly:
+            try:
+                self._db.commit()
+            except sqlite3.Error as exc:
+                self._db.close()
+                raise self._write_error(exc) from exc
         self._db.close()
 
     def __enter__(self) -> Self:

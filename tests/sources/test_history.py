@@ -160,7 +160,7 @@ def test_schema_1_is_refused_or_migrated(tmp_path) -> None:
     con.executemany("INSERT INTO reports VALUES (?,?,?,?,?,?,?,?,?,?,?)", rows)
     con.commit()
     con.close()
-    with pytest.raises(SourceError, match=r"schema 2 expected, actually: 1 .*migrate=True"):
+    with pytest.raises(SourceError, match=r"schema 3 expected, actually: 1; .*migrate=True"):
         SqliteHistory(db)
     with SqliteHistory(db, migrate=True) as store:
         got = store.query_reports(FRAME)
@@ -170,7 +170,7 @@ def test_schema_1_is_refused_or_migrated(tmp_path) -> None:
         assert (got[1].sog_m_s, got[1].cog_rad, got[1].nav_status, got[1].station) == \
             (5.0, 0.5, 0, "2573555")
         assert store.query_static()[0].name == "FERJA"
-    with SqliteHistory(db) as store:  # now schema 2: opens without migrating
+    with SqliteHistory(db) as store:  # now schema 3: opens without migrating
         assert store.count_reports() == 3
         assert len(store.query_reports(FRAME, mmsi=257000002, since_unix_s=T0 + 6)) == 1
     names = {r[0] for r in sqlite3.connect(db).execute("SELECT name FROM sqlite_master")}
@@ -187,7 +187,8 @@ def test_cli_history_refuses_old_schema_then_migrates(tmp_path, capsys) -> None:
                 (T0 + 10, 257000001, 1, 63.45, 10.40, 5.0, 0.5, 0.4, 0.0, 0, "2573555"))
     con.commit()
     con.close()
-    assert main(["ais", "history", "--db", str(db)]) == 1
-    assert "schema 2 expected, actually: 1" in capsys.readouterr().out
+    assert main(["ais", "history", "--db", str(db)]) == 2  # one line on stderr
+    err = capsys.readouterr().err
+    assert "schema 3 expected, actually: 1" in err and "Traceback" not in err
     assert main(["ais", "history", "--db", str(db), "--migrate", "--json"]) == 0
     assert '"mmsi": 257000001' in capsys.readouterr().out

@@ -54,7 +54,7 @@ def test_pacer_without_a_clock() -> None:
     assert [p.delay(t) for t in (100.0, 100.2, 100.4, 101.0, 100.5, 103.0)] == \
         pytest.approx([0.0, 0.0, 0.0, 0.1, 0.0, 0.2])
     assert Pacer(None).delay(5.0) == 0.0
-    with pytest.raises(ValueError, match="speed must be > 0"):
+    with pytest.raises(ValueError, match="speed must be finite and > 0"):
         Pacer(0.0)
 
 
@@ -166,10 +166,10 @@ def test_schema_version_is_checked(tmp_path) -> None:
     con.execute("UPDATE meta SET value='0' WHERE key='schema'")
     con.commit()
     con.close()
-    with pytest.raises(SourceError, match="schema 2 expected, actually: 0"):
+    with pytest.raises(SourceError, match="schema 3 expected, actually: 0"):
         SqliteHistory(db)
-    with pytest.raises(SourceError, match="schema 2 expected, actually: 0"):
-        SqliteHistory(db, migrate=True)  # only schema 1 can be converted
+    with pytest.raises(SourceError, match="schema 3 expected, actually: 0"):
+        SqliteHistory(db, migrate=True)  # only schemas 1 and 2 can be converted
 
 
 def test_recorded_session_replays_to_the_same_picture(tmp_path) -> None:
@@ -181,7 +181,7 @@ def test_recorded_session_replays_to_the_same_picture(tmp_path) -> None:
         batch = pipe.feed_batch([x.line for x in items[k:k + 50]])
         live.update_batch(batch)
         store.append_batch(batch)
-    replayed = TargetRegistry(epoch_unix_s=T0)
+    replayed = TargetRegistry(epoch_unix_s=T0, frame=default_scene().frame)
     replayed.ingest(replay_session(store, default_scene().frame))
     a, b = live.extrapolate(400.0), replayed.extrapolate(400.0)
     assert a.mmsi.tolist() == b.mmsi.tolist()

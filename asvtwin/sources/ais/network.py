@@ -6,7 +6,7 @@ backoff and jitter (:class:`Backoff`), treats a socket that stays silent for
 ``silence_timeout_s`` as dead, discards (and counts) a line cut off when the connection drops,
 and never blocks the event loop: all waiting is ``await``-ed. :class:`UdpAisSource` receives
 the datagrams many shipboard AIS receivers broadcast; a bounded queue decouples the socket
-from the consumer and counts what it has to drop.
+from the consumer, and what the queue or the kernel drops is counted.
 
 Both are feature code for users: per the project's network rule, tests run them only against
 servers on 127.0.0.1.
@@ -15,13 +15,16 @@ servers on 127.0.0.1.
 from __future__ import annotations
 
 import asyncio
+import logging
 import math
+import socket
+import struct
 from collections.abc import AsyncIterator, Callable
 
 import numpy as np
 
-from asvtwin.errors import ParameterError
-from asvtwin.sources.ais.counters import ErrorCounter, ErrorKind
+from asvtwin.errors import ParameterError, SourceError
+from asvtwin.sources.ais.counters import ErrorKind
 from asvtwin.sources.ais.pipeline import AisPipeline
 from asvtwin.sources.ais.reports import ReportBatch
 from asvtwin.sources.ais.source import PipelineSource
@@ -29,6 +32,7 @@ from asvtwin.sources.ais.source import PipelineSource
 __all__ = ["Backoff", "TcpAisSource", "UdpAisSource"]
 
 _MAX_LINE = 4096
+_log = logging.getLogger("asvtwin.sources.ais")
 
 
 class Backoff:
@@ -124,6 +128,7 @@ class TcpAisSource(PipelineSource):
                 continue
             self._connected = True
             buf = b""
+            discarding = False  # inside a line that is already too long: skip to its end
             try:
                 while True:
                     try:
@@ -140,11 +145,24 @@ class TcpAisSource(PipelineSource):
                         break
                     self.backoff.reset()
                     self._last_data = self._now()
+                    if discarding:
+                        nl = chunk.find(b"\n")
+                        if nl < 0:
+                            continue
+                        chunk = chunk[nl + 1:]
+                        discarding = False
                     buf += chunk
                     *lines, buf = buf.split(b"\n")
                     if len(buf) > _MAX_LINE:
-                        count(ErrorKind.TRUNCATED, buf[:80], f"line longer than {_MAX_LINE} bytes")
+                        count(ErrorKind.LINE_TOO_LONG, buf[:80],
+                              f"line longer than {_MAX_LINE} bytes: skipped to its end")
                         buf = b""
+                        discarding = True
+                    if lines and max(map(len, lines)) > _MAX_LINE:
+                        for long_line in (x for x in lines if len(x) > _MAX_LINE):
+                            count(ErrorKind.LINE_TOO_LONG, long_line[:80],
+                                  f"line longer than {_MAX_LINE} bytes")
+                        lines = [x for x in lines if len(x) <= _MAX_LINE]
                     if lines:
                         batch = self.pipeline.feed_batch(lines, recv_time_s=self._last_data)
                         if len(batch) or batch.static:
@@ -170,20 +188,19 @@ class TcpAisSource(PipelineSource):
         return True
 
 
-class _DatagramQueue(asyncio.DatagramProtocol):
-    def __init__(self, queue: asyncio.Queue[bytes], counters: ErrorCounter) -> None:
-        self.queue = queue
-        self.counters = counters
-
-    def datagram_received(self, data: bytes, addr: tuple[str | object, ...]) -> None:
-        try:
-            self.queue.put_nowait(data)
-        except asyncio.QueueFull:
-            self.counters.count(ErrorKind.QUEUE_OVERFLOW, data[:80], "consumer too slow")
+#: Linux: ask the kernel to attach its drop counter to every datagram (socket(7)).
+SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40)
 
 
 class UdpAisSource(PipelineSource):
     """NMEA datagrams received on a UDP port (one or more sentences per datagram).
+
+    Nothing is lost silently. The socket's receive buffer is enlarged (``rcvbuf_bytes``, as
+    far as the kernel allows: :attr:`rcvbuf_bytes_granted`); datagrams the kernel still drops
+    because the buffer was full are counted as ``kernel_drop`` from the drop counter Linux
+    attaches to each datagram (``SO_RXQ_OVFL``); datagrams a slow consumer leaves in a full
+    queue are counted as ``queue_overflow``. The socket is read by the event loop's reader
+    callback, so a consumer that blocks the loop makes the kernel drop (and count).
 
     Parameters
     ----------
@@ -197,26 +214,82 @@ class UdpAisSource(PipelineSource):
         Datagrams buffered for a slow consumer (beyond: dropped and counted).
     silence_timeout_s : float or None
         Count a ``silent_feed`` whenever nothing arrives for this long [s].
+    rcvbuf_bytes : int
+        Receive buffer requested from the kernel [bytes] (capped by ``net.core.rmem_max``).
     """
 
     def __init__(self, port: int, *, host: str = "0.0.0.0", pipeline: AisPipeline | None = None,
                  clock: Callable[[], float] | None = None, queue_size: int = 1024,
-                 silence_timeout_s: float | None = None) -> None:
+                 silence_timeout_s: float | None = None, rcvbuf_bytes: int = 4 << 20) -> None:
         super().__init__(pipeline=pipeline, clock=clock)
         if not 0 <= port < 65536:
             raise ParameterError(f"UdpAisSource: port in 0..65535 expected, actually: {port}")
+        if queue_size < 1 or rcvbuf_bytes < 1:
+            raise ParameterError(f"UdpAisSource: queue_size and rcvbuf_bytes must be >= 1, "
+                                 f"actually: {queue_size}, {rcvbuf_bytes}")
         self.host, self.port = host, int(port)
         self.queue_size = int(queue_size)
         self.silence_timeout_s = silence_timeout_s
+        self.rcvbuf_bytes = int(rcvbuf_bytes)
+        self.rcvbuf_bytes_granted: int | None = None
+        self.drop_counter_available = False
         self.bound_port: int | None = None
+        self.datagrams = 0  #: datagrams received from the kernel
+        self._kernel_drops = 0
         self.ready = asyncio.Event()
+
+    def _open(self) -> socket.socket:
+        sock = socket.socket(socket.AF_INET6 if ":" in self.host else socket.AF_INET,
+                             socket.SOCK_DGRAM)
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, self.rcvbuf_bytes)
+            self.rcvbuf_bytes_granted = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+            try:
+                sock.setsockopt(socket.SOL_SOCKET, SO_RXQ_OVFL, 1)
+                self.drop_counter_available = True
+            except OSError:  # not Linux: kernel drops cannot be counted
+                _log.warning("UDP: the kernel's drop counter (SO_RXQ_OVFL) is not available "
+                             "here; datagrams the kernel drops cannot be counted")
+            sock.bind((self.host, self.port))
+            sock.setblocking(False)
+        except OSError as exc:
+            sock.close()
+            raise SourceError(f"cannot listen on udp://{self.host}:{self.port}: {exc}") from exc
+        return sock
+
+    def _read_all(self, sock: socket.socket, queue: asyncio.Queue[bytes]) -> None:
+        """Reader callback: drain the socket into the queue, counting every loss."""
+        count = self.pipeline.counters.count
+        anc_size = socket.CMSG_SPACE(4)
+        while True:
+            try:
+                data, anc, _, _ = sock.recvmsg(65535, anc_size)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:
+                count(ErrorKind.DISCONNECTED, f"udp:{self.bound_port}", str(exc))
+                return
+            self.datagrams += 1
+            for level, kind, cdata in anc:
+                if level == socket.SOL_SOCKET and kind == SO_RXQ_OVFL and len(cdata) >= 4:
+                    total = struct.unpack("=I", cdata[:4])[0]
+                    if total > self._kernel_drops:
+                        count(ErrorKind.KERNEL_DROP, f"udp:{self.bound_port}",
+                              "the socket's receive buffer was full (consumer too slow or "
+                              f"burst; buffer {self.rcvbuf_bytes_granted} bytes)",
+                              n=total - self._kernel_drops)
+                        self._kernel_drops = total
+            try:
+                queue.put_nowait(data)
+            except asyncio.QueueFull:
+                count(ErrorKind.QUEUE_OVERFLOW, data[:80], "consumer too slow")
 
     async def batches(self) -> AsyncIterator[ReportBatch]:
         loop = asyncio.get_running_loop()
         queue: asyncio.Queue[bytes] = asyncio.Queue(self.queue_size)
-        transport, _ = await loop.create_datagram_endpoint(
-            lambda: _DatagramQueue(queue, self.pipeline.counters), local_addr=(self.host, self.port))
-        self.bound_port = int(transport.get_extra_info("sockname")[1])
+        sock = self._open()
+        self.bound_port = int(sock.getsockname()[1])
+        loop.add_reader(sock.fileno(), self._read_all, sock, queue)
         self._connected = True
         self.ready.set()
         try:
@@ -233,4 +306,5 @@ class UdpAisSource(PipelineSource):
                     yield batch
         finally:
             self._connected = False
-            transport.close()
+            loop.remove_reader(sock.fileno())
+            sock.close()

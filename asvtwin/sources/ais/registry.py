@@ -19,29 +19,72 @@ Dead reckoning from the last report at time :math:`t_k` with speed :math:`U`, co
         + U (\\Delta t - \\tau) (\\cos(\\chi + \\omega\\tau), \\sin(\\chi + \\omega\\tau))
 
 with :math:`\\tau = \\min(\\Delta t, T_{rot})`: the turn is trusted for ``rot_horizon_s`` only,
-then the target runs straight. A target is *stale* once its age exceeds ``stale_factor`` times
-its nominal reporting interval (ITU-R M.1371: class A 2-10 s under way, 3 min at anchor or
-moored; class B 30 s, 3 min below 2 kn), and *evicted* after ``evict_after_s``. Memory is
-bounded by ``capacity`` whatever the feed does: when full, stale targets go first, then the
-oldest.
+then the target runs straight.
+
+**Geodetically.** AIS course is *true* course, measured from north at the ship; in the scene's
+tangent plane, north at a ship 20 km east of the origin is turned by the meridian
+convergence (about 0.3 degrees in the fjord), so a plane dead reckoning of 600 s drifts tens
+of metres. The displacement above, :math:`(d_n, d_e)` in metres north and east *at the ship*,
+is therefore applied on the WGS84 ellipsoid by middle-latitude sailing (a rhumb line, the
+track of a ship keeping its course; exact to millimetres over the few kilometres dead
+reckoning spans),
+
+.. math::
+
+    \\varphi_1 = \\varphi_0 + \\frac{d_n}{M(\\varphi_m)}, \\qquad
+    \\lambda_1 = \\lambda_0 + \\frac{d_e}{N(\\varphi_m)\\cos\\varphi_m}, \\qquad
+    \\varphi_m = \\tfrac12(\\varphi_0 + \\varphi_1),
+
+with the meridian and prime-vertical radii :math:`M, N`, and the result is projected into the
+scene frame exactly (:class:`~asvtwin.geo.LocalFrame`); velocity and heading are turned by the
+convergence at the ship. Batches from :class:`~asvtwin.sources.ais.AisPipeline` carry their
+frame; without one (reports built by hand) the registry falls back to the plane.
+
+A target is *stale* once its age exceeds ``stale_factor`` times its nominal reporting interval
+(ITU-R M.1371: class A 2-10 s under way, 3 min at anchor or moored; class B 30 s, 3 min below
+2 kn; the speed counts even when the course is not available), and *evicted* after
+``evict_after_s``. Memory is bounded by ``capacity`` whatever the feed does: when full, stale
+targets go first, then the oldest.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
 from asvtwin.errors import ParameterError
+from asvtwin.geo import WGS84_A_M, WGS84_F, LocalFrame
 from asvtwin.sources.ais.reports import AisReport, AisStatic, ReportBatch
 from asvtwin.units import KNOT_M_S
 
 __all__ = ["TargetRegistry", "TargetSnapshot", "nominal_report_interval_s"]
 
 _F8 = NDArray[np.float64]
+_E2 = WGS84_F * (2.0 - WGS84_F)
+
+
+def _empty_f8() -> _F8:
+    return np.empty(0)
+
+
+def rhumb_destination(lat_deg: _F8, lon_deg: _F8, north_m: _F8, east_m: _F8
+                      ) -> tuple[_F8, _F8]:
+    """Move points by ``(north_m, east_m)`` metres along the WGS84 surface (middle-latitude
+    sailing: a rhumb line; see the module docstring). Returns latitude and longitude [deg]."""
+    phi0 = np.radians(lat_deg)
+    phi1 = phi0
+    for _ in range(3):  # phi_m depends on phi_1: three fixed-point steps converge to 1e-15
+        phi_m = 0.5 * (phi0 + phi1)
+        w = 1.0 - _E2 * np.sin(phi_m) ** 2
+        M = WGS84_A_M * (1.0 - _E2) / w ** 1.5
+        phi1 = phi0 + north_m / M
+    N = WGS84_A_M / np.sqrt(w)
+    dlam = east_m / (N * np.cos(phi_m))
+    return np.degrees(phi1), np.asarray(lon_deg) + np.degrees(dlam)
 
 
 def nominal_report_interval_s(sog_m_s: _F8, class_b: NDArray[np.bool_],
@@ -80,13 +123,25 @@ class TargetSnapshot:
     velocity_known : ndarray of bool, (n,)
         False when SOG or COG was not available.
     heading_rad : ndarray, (n,)
-        Heading [rad] (course where the heading is unknown, 0 where both are).
+        Orientation to draw [rad] in the scene's NED axes: the heading, else the course,
+        else 0 (never NaN; for the "not available" truth read ``true_heading_rad``).
     age_s : ndarray, (n,)
         Time since the last report [s].
     stale : ndarray of bool, (n,)
         Age beyond ``stale_factor`` reporting intervals.
     static : tuple
         :class:`AisStatic` or None per row.
+    sog_m_s : ndarray, (n,)
+        Reported speed over ground [m/s]; NaN when not available.
+    cog_rad : ndarray, (n,)
+        True course over ground [rad] (from north at the ship, clockwise, turned by the
+        reported rate of turn as dead reckoned); NaN when not available.
+    true_heading_rad : ndarray, (n,)
+        True heading [rad], same convention; NaN when not available.
+    lat_deg, lon_deg : ndarray, (n,)
+        The dead-reckoned position in WGS84 [deg].
+    class_b : ndarray of bool, (n,)
+        Class B transponder (types 18/19).
     """
 
     t_s: float
@@ -98,9 +153,20 @@ class TargetSnapshot:
     age_s: _F8
     stale: NDArray[np.bool_]
     static: tuple[AisStatic | None, ...]
+    sog_m_s: _F8 = field(default_factory=_empty_f8)
+    cog_rad: _F8 = field(default_factory=_empty_f8)
+    true_heading_rad: _F8 = field(default_factory=_empty_f8)
+    lat_deg: _F8 = field(default_factory=_empty_f8)
+    lon_deg: _F8 = field(default_factory=_empty_f8)
+    class_b: NDArray[np.bool_] = field(default_factory=lambda: np.empty(0, np.bool_))
 
     def __len__(self) -> int:
         return int(self.mmsi.shape[0])
+
+
+def _wrap(a: _F8) -> _F8:
+    """Angles to [-pi, pi) (NaN stays NaN)."""
+    return (a + np.pi) % (2 * np.pi) - np.pi
 
 
 class TargetRegistry:
@@ -114,19 +180,23 @@ class TargetRegistry:
         UNIX time of simulation time 0 [s]; times in and out of the registry are simulation
         seconds ``t_unix_s - epoch_unix_s``.
     stale_factor : float
-        A target is stale after this many nominal reporting intervals (at least
-        ``min_stale_s``).
+        A target is stale after this many nominal reporting intervals (ITU-R M.1371; a
+        25-kn ship reporting every 2 s is stale after 6 s).
     min_stale_s : float
-        Lower bound of the stale age [s].
+        Optional lower bound of the stale age [s] (0: none).
     evict_after_s : float
         Targets older than this are removed [s].
     rot_horizon_s : float
         How long a reported rate of turn is extrapolated [s] (0 disables ROT).
+    frame : LocalFrame, optional
+        Scene frame for geodetic dead reckoning; taken from the first batch that carries
+        one when omitted (without any, dead reckoning is done in the plane).
     """
 
     def __init__(self, *, capacity: int = 4096, epoch_unix_s: float = 0.0,
-                 stale_factor: float = 3.0, min_stale_s: float = 30.0,
-                 evict_after_s: float = 1200.0, rot_horizon_s: float = 60.0) -> None:
+                 stale_factor: float = 3.0, min_stale_s: float = 0.0,
+                 evict_after_s: float = 1200.0, rot_horizon_s: float = 60.0,
+                 frame: LocalFrame | None = None) -> None:
         if capacity < 1:
             raise ParameterError(f"TargetRegistry: capacity must be >= 1, actually: {capacity}")
         for name, v in (("stale_factor", stale_factor), ("min_stale_s", min_stale_s),
@@ -140,6 +210,7 @@ class TargetRegistry:
         self.min_stale_s = float(min_stale_s)
         self.evict_after_s = float(evict_after_s)
         self.rot_horizon_s = float(rot_horizon_s)
+        self.frame = frame
         c = self.capacity
         self._mmsi = np.zeros(c, dtype=np.int64)
         self._active = np.zeros(c, dtype=np.bool_)
@@ -149,6 +220,10 @@ class TargetRegistry:
         self._cog = np.zeros(c)
         self._vel_ok = np.zeros(c, dtype=np.bool_)
         self._hdg = np.zeros(c)
+        self._sog_n = np.full(c, np.nan)  # as reported: NaN = not available
+        self._cog_n = np.full(c, np.nan)
+        self._hdg_n = np.full(c, np.nan)
+        self._ll = np.full((c, 2), np.nan)  # reported latitude, longitude [deg]
         self._rot = np.zeros(c)
         self._class_b = np.zeros(c, dtype=np.bool_)
         self._nav = np.full(c, -1, dtype=np.int64)
@@ -193,6 +268,8 @@ class TargetRegistry:
         """Take a batch of dynamic reports and its static records (vectorised)."""
         for record in batch.static:
             self.update_static(record)
+        if self.frame is None and batch.frame is not None:
+            self.frame = batch.frame
         n = len(batch)
         if n == 0:
             return
@@ -234,6 +311,11 @@ class TargetRegistry:
         self._cog[slots] = np.where(vel_ok, cog, 0.0)
         # heading: reported, else course, else 0 (never NaN in the state)
         self._hdg[slots] = np.where(np.isnan(hdg), np.where(np.isnan(cog), 0.0, cog), hdg)
+        self._sog_n[slots] = sog
+        self._cog_n[slots] = cog
+        self._hdg_n[slots] = hdg
+        self._ll[slots, 0] = batch.lat_deg[rows]
+        self._ll[slots, 1] = batch.lon_deg[rows]
         self._rot[slots] = np.where(np.isnan(rot), 0.0, rot)
         self._class_b[slots] = np.isin(batch.msg_type[rows], (18, 19))
         self._nav[slots] = batch.nav_status[rows]
@@ -301,19 +383,41 @@ class TargetRegistry:
         arc_n = np.where(turning, U / w_safe * (np.sin(chi_end) - np.sin(chi)), 0.0)
         arc_e = np.where(turning, U / w_safe * (np.cos(chi) - np.cos(chi_end)), 0.0)
         run = U * (dt - tau)
-        pos = self._p[idx].copy()
-        pos[:, 0] += arc_n + run * np.cos(chi_end)
-        pos[:, 1] += arc_e + run * np.sin(chi_end)
-        vel = np.column_stack([U * np.cos(chi_end), U * np.sin(chi_end)])
-        interval = nominal_report_interval_s(U, self._class_b[idx], self._nav[idx])
+        # displacement in metres north/east at the ship (its own north: AIS course is true)
+        d_n = arc_n + run * np.cos(chi_end)
+        d_e = arc_e + run * np.sin(chi_end)
+        ll = self._ll[idx]
+        geodetic = self.frame is not None and not np.isnan(ll).any()
+        if geodetic:
+            frame = self.frame
+            lat, lon = rhumb_destination(ll[:, 0], ll[:, 1], d_n, d_e)
+            pn, pe = frame.to_ned(lat, lon)  # type: ignore[union-attr]
+            pos = np.column_stack([pn, pe]) if len(idx) else np.zeros((0, 2))
+            # meridian convergence: the angle of the ship's north in the scene's NED axes
+            qn, qe = frame.to_ned(lat + 1e-5, lon)  # type: ignore[union-attr]
+            gamma = np.arctan2(np.asarray(qe) - pe, np.asarray(qn) - pn)
+        else:
+            pos = self._p[idx].copy()
+            pos[:, 0] += d_n
+            pos[:, 1] += d_e
+            lat, lon = ll[:, 0].copy(), ll[:, 1].copy()
+            gamma = np.zeros(len(idx))
+        vel = np.column_stack([U * np.cos(chi_end + gamma), U * np.sin(chi_end + gamma)])
+        sog_n = self._sog_n[idx]
+        interval = nominal_report_interval_s(sog_n, self._class_b[idx], self._nav[idx])
         stale = age > np.maximum(self.stale_factor * interval, self.min_stale_s)
         mmsi = self._mmsi[idx].copy()
+        turn = w * tau
         return TargetSnapshot(
             t_s=float(t_s), mmsi=mmsi, position_m=pos, velocity_m_s=vel,
             velocity_known=self._vel_ok[idx].copy(),
-            heading_rad=(self._hdg[idx] + w * tau + np.pi) % (2 * np.pi) - np.pi,
+            heading_rad=_wrap(self._hdg[idx] + turn + gamma),
             age_s=age, stale=stale,
             static=tuple(self._static.get(m) for m in mmsi.tolist()),
+            sog_m_s=sog_n.copy(), cog_rad=_wrap(self._cog_n[idx] + turn),
+            true_heading_rad=_wrap(self._hdg_n[idx] + turn),
+            lat_deg=np.asarray(lat, np.float64), lon_deg=np.asarray(lon, np.float64),
+            class_b=self._class_b[idx].copy(),
         )
 
     snapshot = extrapolate

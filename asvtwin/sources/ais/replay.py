@@ -12,12 +12,13 @@
 from __future__ import annotations
 
 import asyncio
+import math
 import os
 from collections.abc import AsyncIterator, Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from asvtwin.errors import SourceError
+from asvtwin.errors import ParameterError, SourceError
 from asvtwin.geo import LocalFrame
 from asvtwin.sources.ais.pipeline import AisPipeline
 from asvtwin.sources.ais.reports import AisReport, AisStatic, ReportBatch
@@ -47,13 +48,18 @@ class FileReplaySource(PipelineSource):
         time keeps increasing.
     loop_gap_s : float
         Pause between passes, in stream time [s].
+    max_step_s : float
+        Largest stream-time step paced as it is [s]; lone corrupt times are ignored (see
+        :class:`~asvtwin.sources.ais.source.Pacer`). Only tag times whose checksum holds and
+        that are plausible pace the replay or count towards the loop span.
     pipeline, clock
         See :class:`~asvtwin.sources.ais.source.PipelineSource`; untagged lines are stamped
-        with ``clock()`` (without a clock they are counted as ``missing_time``).
+        with ``clock()`` when reading them (counted as the notice ``receive_time``); without
+        a clock they are counted as ``missing_time``.
     """
 
     def __init__(self, path: str | os.PathLike[str], *, speed: float | None = 1.0,
-                 loop: bool = False, loop_gap_s: float = 60.0,
+                 loop: bool = False, loop_gap_s: float = 60.0, max_step_s: float = 60.0,
                  pipeline: AisPipeline | None = None,
                  clock: Callable[[], float] | None = None) -> None:
         super().__init__(pipeline=pipeline, clock=clock)
@@ -61,28 +67,28 @@ class FileReplaySource(PipelineSource):
         if not self.path.is_file():
             raise SourceError(f"AIS log {str(self.path)!r} is not a readable file")
         self.speed = speed
-        Pacer(speed)  # validates the speed
+        self.max_step_s = float(max_step_s)
+        self.pacer = Pacer(speed, max_step_s=max_step_s)  # validates; replaced on each run
         self.loop = loop
+        if not (math.isfinite(loop_gap_s) and loop_gap_s >= 0):
+            raise ParameterError(f"loop_gap_s must be finite and >= 0, actually: {loop_gap_s}")
         self.loop_gap_s = float(loop_gap_s)
         self.passes = 0
+        self.span_s: float | None = None  #: the log's span used between loop passes [s]
 
     async def batches(self) -> AsyncIterator[ReportBatch]:
         offset = 0.0
-        pacer = Pacer(self.speed)
+        span: float | None = None
+        pacer = Pacer(self.speed, max_step_s=self.max_step_s)
+        self.pacer = pacer
         self._connected = True
         try:
             while True:
-                first = last = None
                 pending: list[bytes] = []
                 with self.path.open("rb") as fh:
                     for line in fh:
-                        t = tag_time(line)
-                        if t is not None:
-                            first = t if first is None else first
-                            last = t if last is None else max(last, t)
-                            wait = pacer.delay(t + offset)
-                        else:
-                            wait = 0.0
+                        t = tag_time(line)  # checksum-valid and plausible, else None
+                        wait = pacer.delay(t + offset) if t is not None else 0.0
                         if wait > 0.0 or len(pending) >= _MAX_BATCH:
                             if pending:
                                 yield self._feed(pending, offset)
@@ -91,10 +97,19 @@ class FileReplaySource(PipelineSource):
                         pending.append(line)
                 if pending:
                     yield self._feed(pending, offset)
+                self.pipeline.finish()  # fragments cannot complete across the end of the file
                 self.passes += 1
                 if not self.loop:
                     return
-                span = (last - first) if first is not None and last is not None else 0.0
+                # the next pass starts after everything the first accepted: the span of the
+                # pacer's timeline (lone corrupt times are not on it) or of the pipeline's
+                # accepted reports (bounded by the robust stream time), plus the gap
+                if span is None:
+                    span = 0.0
+                    if pacer.first is not None and pacer.last is not None:
+                        end = max(pacer.last, self.pipeline.latest_time_unix_s or -math.inf)
+                        span = end - pacer.first
+                    self.span_s = span
                 offset += span + self.loop_gap_s
                 await yield_control()
         finally:
@@ -195,13 +210,13 @@ class HistoryReplaySource(PipelineSource):
             for msg in self._session():
                 wait = pacer.delay(msg.t_unix_s)
                 if (wait > 0.0 or len(reports) >= _MAX_BATCH) and (reports or static):
-                    yield ReportBatch.from_reports(reports, tuple(static))
+                    yield ReportBatch.from_reports(reports, tuple(static), frame=self.frame)
                     reports, static = [], []
                 if wait > 0.0:
                     await asyncio.sleep(wait)
                 self._last_data = msg.t_unix_s
                 (static if isinstance(msg, AisStatic) else reports).append(msg)  # type: ignore[arg-type]
             if reports or static:
-                yield ReportBatch.from_reports(reports, tuple(static))
+                yield ReportBatch.from_reports(reports, tuple(static), frame=self.frame)
         finally:
             self._connected = False

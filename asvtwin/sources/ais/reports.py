@@ -22,10 +22,13 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from asvtwin.geo import LocalFrame
 
 __all__ = [
     "CLASS_B_TYPES",
@@ -182,7 +185,8 @@ class ReportBatch:
 
     Every array has shape (n,). NaN marks "not available" in ``sog_m_s``, ``cog_rad``,
     ``heading_rad`` and ``rot_rad_s``; ``nav_status`` is -1 when not available.
-    ``station`` holds the receiving station per row (None if unknown).
+    ``station`` holds the receiving station per row (None if unknown). ``frame`` is the
+    local frame ``north_m``/``east_m`` are in (None when unknown, e.g. built from reports).
     """
 
     mmsi: NDArray[np.int64]
@@ -199,6 +203,7 @@ class ReportBatch:
     nav_status: NDArray[np.int64]
     station: tuple[str | None, ...]
     static: tuple[AisStatic, ...] = ()
+    frame: LocalFrame | None = None
 
     def __len__(self) -> int:
         return int(self.mmsi.shape[0])
@@ -212,10 +217,12 @@ class ReportBatch:
 
     @classmethod
     def from_reports(cls, reports: list[AisReport] | tuple[AisReport, ...],
-                     static: tuple[AisStatic, ...] = ()) -> ReportBatch:
-        """Build a batch from report objects (None -> NaN / -1)."""
+                     static: tuple[AisStatic, ...] = (), *,
+                     frame: LocalFrame | None = None) -> ReportBatch:
+        """Build a batch from report objects (None -> NaN / -1); ``frame``: the frame their
+        ``north_m``/``east_m`` are in, if known."""
         if not reports:
-            return cls.empty(static)
+            return dataclasses.replace(cls.empty(static), frame=frame)
         nan = math.nan
 
         def col(name: str) -> _F8:
@@ -233,7 +240,7 @@ class ReportBatch:
             nav_status=np.array([-1 if r.nav_status is None else r.nav_status for r in reports],
                                 dtype=np.int64),
             station=tuple(r.station for r in reports),
-            static=static,
+            static=static, frame=frame,
         )
 
     def reports(self) -> list[AisReport]:

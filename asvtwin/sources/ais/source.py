@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import abc
 import asyncio
+import functools
+import math
 from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
@@ -19,6 +21,8 @@ from asvtwin.errors import ParameterError
 from asvtwin.sources.ais.counters import PipelineStats
 from asvtwin.sources.ais.pipeline import AisPipeline
 from asvtwin.sources.ais.reports import AisMessage, ReportBatch
+from asvtwin.sources.ais.tagblock import TagBlockError, parse_tag_block
+from asvtwin.sources.ais.timebase import plausible_time
 
 __all__ = ["AisSource", "Pacer", "PipelineSource", "SourceStatus", "tag_time"]
 
@@ -101,21 +105,27 @@ class PipelineSource(abc.ABC):
 
 
 def tag_time(line: bytes) -> float | None:
-    """The ``c:`` receive time [UNIX s] of a line's tag block, or None (no parsing errors)."""
+    """The ``c:`` receive time [UNIX s] of a line's tag block, or None.
+
+    Only a time that can be trusted for pacing: the tag block's checksum holds (either
+    convention of :func:`~asvtwin.sources.ais.tagblock.parse_tag_block`) and the time is
+    plausible (2000..2100). Never raises.
+    """
     if not line.startswith(b"\\"):
         return None
     end = line.find(b"\\", 1)
-    i = line.find(b"c:", 1, end)
-    if end < 0 or i < 0:
-        return None
-    j = i + 2
-    while j < end and line[j] not in b",*":
-        j += 1
+    return _tag_block_time(line[1:end]) if end > 0 else None
+
+
+@functools.lru_cache(maxsize=4096)
+def _tag_block_time(tag: bytes) -> float | None:
+    """A tag block's trustworthy time (a pure function of the tag: cached, as lines of one
+    second from one station share their tag)."""
     try:
-        c = float(line[i + 2:j])
-    except ValueError:
+        t = parse_tag_block(tag).t_unix_s
+    except TagBlockError:
         return None
-    return c / 1000.0 if c > 1e11 else c
+    return t if plausible_time(t) else None
 
 
 class Pacer:
@@ -126,31 +136,77 @@ class Pacer:
     worth a sleep (>= ``min_sleep_s``). Processing time is not subtracted, so a slow consumer
     makes the replay slower, never faster, than ``speed``.
 
+    One corrupt time must not stall or race the replay: a jump of more than ``max_step_s``
+    (forwards or backwards) is taken only when the next time confirms it (lies within
+    ``max_step_s`` of it); a lone outlier is ignored (:attr:`outliers`). A confirmed forward
+    jump (a gap in the log) sleeps at most ``max_step_s / speed`` (:attr:`gaps`). The
+    timeline the pacer follows (:attr:`first`, :attr:`last`) is what a looping replay uses as
+    the log's span.
+
     Parameters
     ----------
     speed : float or None
         Replay speed factor (1 = real time, 100 = a hundred times faster); None for as fast
-        as possible.
+        as possible (the timeline is still followed).
     min_sleep_s : float
         Smallest sleep worth taking [s].
+    max_step_s : float
+        Largest stream-time step paced as it is [s].
     """
 
-    def __init__(self, speed: float | None, *, min_sleep_s: float = 0.005) -> None:
-        if speed is not None and not speed > 0:
-            raise ParameterError(f"replay speed must be > 0 (or None), actually: {speed}")
+    def __init__(self, speed: float | None, *, min_sleep_s: float = 0.005,
+                 max_step_s: float = 60.0) -> None:
+        if speed is not None and not (speed > 0 and math.isfinite(speed)):
+            raise ParameterError(f"replay speed must be finite and > 0 (or None), actually: "
+                                 f"{speed}")
+        if not (max_step_s > 0 and math.isfinite(max_step_s)):
+            raise ParameterError(f"max_step_s must be finite and > 0, actually: {max_step_s}")
         self.speed = speed
         self.min_sleep_s = min_sleep_s
+        self.max_step_s = float(max_step_s)
         self._t_prev: float | None = None
+        self._jump: float | None = None
         self._debt = 0.0
+        self.first: float | None = None  #: first time of the timeline [s]
+        self.last: float | None = None  #: latest time of the timeline [s]
+        self.outliers = 0  #: lone times ignored
+        self.gaps = 0  #: confirmed forward jumps longer than max_step_s (sleep capped)
 
     def delay(self, t: float | None) -> float:
         """Seconds to sleep before the item at stream time ``t`` (0 when not yet worth it)."""
-        if self.speed is None or t is None:
+        if t is None or not math.isfinite(t):
             return 0.0
-        if self._t_prev is not None and t > self._t_prev:
-            self._debt += (t - self._t_prev) / self.speed
-        if self._t_prev is None or t > self._t_prev:
+        prev = self._t_prev
+        if prev is None:
+            self._t_prev = self.first = self.last = t
+            return 0.0
+        step = t - prev
+        if abs(step) > self.max_step_s:
+            jump = self._jump
+            if jump is None or abs(t - jump) > self.max_step_s:
+                if jump is not None:
+                    self.outliers += 1  # the previous lone jump was not confirmed
+                self._jump = t
+                return 0.0
+            self._jump = None  # confirmed: a gap (or a restart) in the log
+            if step > 0:
+                self.gaps += 1
+                self._debt += self.max_step_s / self.speed if self.speed else 0.0
             self._t_prev = t
+            self.last = t if self.last is None or t > self.last else self.last
+            return self._pay()
+        if self._jump is not None:
+            self.outliers += 1
+            self._jump = None
+        if step > 0:
+            if self.speed is not None:
+                self._debt += step / self.speed
+            self._t_prev = t
+            if self.last is None or t > self.last:
+                self.last = t
+        return self._pay()
+
+    def _pay(self) -> float:
         if self._debt >= self.min_sleep_s:
             d, self._debt = self._debt, 0.0
             return d

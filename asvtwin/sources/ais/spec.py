@@ -78,5 +78,6 @@ def open_ais_source(spec: str, *, clock: Callable[[], float], scene: Scene | Non
     if not Path(spec).is_file():
         raise ConfigError(f"AIS source {spec!r} is neither tcp://HOST:PORT, udp://:PORT, "
                           "synthetic nor an existing file")
+    # untagged lines of a log are stamped with the receive clock (counted as a notice)
     return FileReplaySource(spec, speed=speed, loop=loop, pipeline=AisPipeline(scene),
-                            clock=None)
+                            clock=clock)

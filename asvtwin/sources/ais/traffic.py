@@ -8,19 +8,12 @@ passenger ship, a fishing boat, a leisure craft) along plausible routes with
 controller, with a feed-forward + proportional speed controller, all vectorised over the
 vessels. :mod:`asvtwin.sources.ais.synthetic` turns the states into NMEA.
 
-Line-of-sight guidance (Fossen 2021, ch. 12) towards the leg from waypoint :math:`p_{k-1}` to
-:math:`p_k` with path angle :math:`\\alpha_k` and look-ahead distance :math:`\\Delta`:
-
-.. math::
-
-    e = -(n - n_{k-1}) \\sin\\alpha_k + (e - e_{k-1}) \\cos\\alpha_k, \\qquad
-    \\chi_d = \\alpha_k + \\arctan(-e / \\Delta)
-
-Heading control through a limited yaw-rate reference,
-:math:`r_d = \\mathrm{sat}_{r_{max}}(\\omega_n \\tilde\\psi)`,
-:math:`\\tau_r = 20\\omega_n I (r_d - r) - N_r r_d` with :math:`I = I_z - N_{\\dot r}`; speed control,
-:math:`\\tau_u = d(u_d) + k_u (u_d - u)` with :math:`d(u) = -(X_u u + X_{|u|u} u^2 + X_{uuu} u^3)`.
-Both saturate in the simulator's actuator model.
+Line-of-sight guidance is :func:`asvtwin.guidance.los_steer` (Fossen 2011, ch. 10; look-ahead
+4 L + 50 m) on each vessel's current leg; heading and speed are held by the project's one
+:class:`asvtwin.guidance.HeadingSpeedAutopilot` with the rate-limited cascade
+(:math:`r_d = \\mathrm{sat}_{r_{max}}(\\omega_n \\tilde\\psi)`,
+:math:`\\tau_r = 20\\omega_n I (r_d - r) - N_r r_d`, :math:`I = I_z - N_{\\dot r}`) and
+:math:`\\tau_u = d(u_d) + k_u (u_d - u)`, saturated to each vessel's actuator limits.
 """
 
 from __future__ import annotations
@@ -33,6 +26,7 @@ from numpy.typing import NDArray
 
 from asvtwin.errors import ParameterError
 from asvtwin.geo import Scene, default_scene
+from asvtwin.guidance import AutopilotGains, HeadingSpeedAutopilot, los_steer
 from asvtwin.units import wrap_angle
 from asvtwin.vessel import BatchSimulator, cybership2, froude_scale
 from asvtwin.vessel.params import RHO_SEA, ActuatorParams, VesselParams
@@ -181,17 +175,21 @@ class FjordTraffic:
         self._lookahead = 4.0 * L + 50.0
         self._accept = 2.0 * L + 30.0
         self._brake = 40.0 * L
-        # heading PD (ζ = 0.9) and speed gains from each vessel's own model
+        # heading cascade and speed gains from each vessel's own model
         inertia = np.array([p.I_z - p.N_rdot for p in params])
         wn = 0.35 / np.sqrt(np.array([v.scale for v in self.fleet]))
-        self._wn = wn
-        self._kr = 20.0 * wn * inertia
-        self._Nr = np.array([p.N_r for p in params])
-        # gentle turns (diameter ~ 6 ship lengths): a hard turn builds up sway, and the
-        # model's sway-yaw coupling (N_v, N_vv) then beats the yaw actuator
-        self._r_max = self._U / (3.0 * L)
-        self._X = np.array([[p.X_u, p.X_uu, p.X_uuu] for p in params])
-        self._ku = np.array([p.m - p.X_udot for p in params]) / (10.0 * np.sqrt([v.scale for v in self.fleet]))
+        self.autopilot = HeadingSpeedAutopilot(params, AutopilotGains(
+            k_psi=wn,
+            # gentle turns (diameter ~ 6 ship lengths): a hard turn builds up sway, and the
+            # model's sway-yaw coupling (N_v, N_vv) then beats the yaw actuator
+            r_max_rad_s=self._U / (3.0 * L),
+            k_r=20.0 * wn * inertia,
+            yaw_feedforward=1.0,
+            k_u=np.array([p.m - p.X_udot for p in params])
+            / (10.0 * np.sqrt([v.scale for v in self.fleet])),
+            speed_feedforward=1.0,
+            crab_compensation=False,
+        ))
         # start positions along the routes
         self._k = np.ones(n, dtype=np.int64)  # index of the waypoint steered to
         self._dir = np.ones(n, dtype=np.int64)
@@ -235,11 +233,7 @@ class FjordTraffic:
         k = self._k
         prev = self._W[rows, k - self._dir]
         nxt = self._W[rows, k]
-        d = nxt - prev
-        alpha = np.arctan2(d[:, 1], d[:, 0])
-        rel = x[:, :2] - prev
-        cross = -rel[:, 0] * np.sin(alpha) + rel[:, 1] * np.cos(alpha)
-        chi_d = alpha + np.arctan(-cross / self._lookahead)  # LOS guidance
+        chi_d, _, along, leg = los_steer(x[:, :2], prev, nxt, self._lookahead)  # LOS guidance
         dist = np.linalg.norm(nxt - x[:, :2], axis=1)
         last = np.where(self._dir > 0, self._nw - 1, 0)
         terminal = (k == last) & ~self._closed
@@ -247,20 +241,13 @@ class FjordTraffic:
         u_d = np.where(terminal, self._U * np.clip(dist / self._brake, 0.12, 1.0), self._U)
         moored = t < self._dwell_until
         u_d = np.where(moored, 0.0, u_d)
-        leg = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)
-        along = (rel[:, 0] * d[:, 0] + rel[:, 1] * d[:, 1]) / leg
         arrive = ((dist < self._accept) | (along > leg - self._accept)) & ~moored
         if arrive.any():
             self._advance(np.flatnonzero(arrive), terminal, t)
-        u, r = x[:, 3], x[:, 5]
-        Xu, Xuu, Xuuu = self._X.T
-        tau_u = -(Xu * u_d + Xuu * u_d * np.abs(u_d) + Xuuu * u_d**3) + self._ku * (u_d - u)
-        tau_u = np.where(moored, 0.0, tau_u)
-        e_psi = wrap_angle(chi_d - x[:, 2])
-        r_d = np.clip(self._wn * e_psi, -self._r_max, self._r_max)
-        tau_r = self._kr * (r_d - r) - self._Nr * r_d
+        tau = self.autopilot.tau(x, chi_d, u_d)
+        tau[:, 0] = np.where(moored, 0.0, tau[:, 0])
         self.nav_status = np.where(moored & (np.hypot(x[:, 3], x[:, 4]) < 0.3), 5, 0)
-        return self.sim.step(np.column_stack([tau_u, np.zeros(n), tau_r]))
+        return self.sim.step(tau)
 
     def _advance(self, idx: NDArray[np.int64], terminal: NDArray[np.bool_], t: float) -> None:
         """Switch waypoints; at a terminal moor (if it has a dwell) and turn the route round."""
