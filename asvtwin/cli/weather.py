@@ -1,6 +1,8 @@
-"""``asvtwin weather show``: the weather the twin uses (recorded fixture, or MET Norway live).
+"""``asvtwin weather show``: the weather the twin uses (synthetic fixture, a file, or MET Norway).
 
-Offline by default: the bundled Trondheim Locationforecast 2.0 compact response. ``--live``
+Offline by default: the bundled Trondheim fixture, a *synthetic* forecast authored for this
+project in the Locationforecast 2.0 compact schema (labelled so in the output; not MET Norway
+data). ``--file`` reads a compact-schema JSON file (e.g. a saved api.met.no response). ``--live``
 asks api.met.no (it needs ``--user-agent`` naming you and a contact, or the environment
 variable ``ASVTWIN_USER_AGENT``); nothing is contacted without it.
 """
@@ -24,7 +26,8 @@ def register(subparsers: Any) -> None:
     sub = weather.add_subparsers(title="weather commands", metavar="COMMAND")
     weather.set_defaults(func=lambda args: (weather.print_help(), 2)[1])
     s = sub.add_parser("show", help="print the forecast the twin would use",
-                       description="Print the weather series (offline fixture by default).")
+                       description="Print the weather series (the synthetic offline fixture by "
+                       "default, labelled as such).")
     s.add_argument("--file", default=None, help="a compact-schema JSON file instead of the fixture")
     s.add_argument("--live", action="store_true",
                    help="fetch from api.met.no (needs --user-agent or ASVTWIN_USER_AGENT)")
@@ -50,19 +53,16 @@ def _show(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
 
-    from asvtwin.errors import AsvTwinError
     from asvtwin.sources.weather import ATTRIBUTION, MetNoClient, OfflineWeatherSource
 
     console = Console()
-    try:
-        if args.live:
-            ua = args.user_agent or os.environ.get("ASVTWIN_USER_AGENT", "")
-            source: Any = MetNoClient(args.lat, args.lon, user_agent=ua, clock=time.time)
-        else:
-            source = OfflineWeatherSource(args.file)
-        fc = source.fetch()
-    except AsvTwinError:
-        raise  # one line on stderr, exit 2: asvtwin.cli.main
+    # errors (a bad --file, no User-Agent) end in one line on stderr, exit 2: asvtwin.cli.main
+    if args.live:
+        ua = args.user_agent or os.environ.get("ASVTWIN_USER_AGENT", "")
+        source: Any = MetNoClient(args.lat, args.lon, user_agent=ua, clock=time.time)
+    else:
+        source = OfflineWeatherSource(args.file)
+    fc = source.fetch()
     series = fc.series
     t0 = series.span_unix_s[0]
     times = np.arange(t0, min(t0 + args.hours * 3600.0, series.span_unix_s[1]) + 1.0,
@@ -86,9 +86,11 @@ def _show(args: argparse.Namespace) -> int:
     if args.json:
         for r in rows:
             print(json.dumps({k: (None if isinstance(x, float) and math.isnan(x) else x)
-                              for k, x in r.items()}))
+                              for k, x in r.items()} | {"source": fc.source,
+                                                        "synthetic": fc.synthetic}))
         return 0
-    table = Table(title=f"Weather at {series.lat_deg:.2f} N {series.lon_deg:.2f} E "
+    kind = "SYNTHETIC " if fc.synthetic else ""
+    table = Table(title=f"{kind}Weather at {series.lat_deg:.2f} N {series.lon_deg:.2f} E "
                   f"({fc.source}{', STALE' if fc.stale else ''})", title_justify="left")
     for col in ("time (UTC)", "wind m/s", "from deg", "temp C", "pressure hPa", "RH %",
                 "cloud %"):
@@ -99,5 +101,8 @@ def _show(args: argparse.Namespace) -> int:
                       fmt(r["relative_humidity_pct"], ".0f"), fmt(r["cloud_pct"], ".0f"))
     console.print(table)
     upd = datetime.fromtimestamp(series.updated_unix_s, tz=UTC)
-    console.print(f"{len(series)} forecast steps, updated {upd:%Y-%m-%d %H:%MZ}. {ATTRIBUTION}")
+    credit = ("Synthetic data authored for asvtwin: not a forecast, not MET Norway data."
+              if fc.synthetic else ATTRIBUTION if fc.source == "met.no"
+              else f"From {fc.source}.")
+    console.print(f"{len(series)} steps, updated {upd:%Y-%m-%d %H:%MZ}. {credit}")
     return 0

@@ -42,6 +42,7 @@ from numpy.typing import NDArray
 
 from asvtwin.errors import ParameterError, SourceError
 from asvtwin.geo import LocalFrame
+from asvtwin.sources.ais.reports import AisReport, AisStatic, ReportBatch
 from asvtwin.sources.history_schema import (
     SCHEMA,
     SCHEMA_VERSION,
@@ -49,7 +50,6 @@ from asvtwin.sources.history_schema import (
     migrate_v2,
     open_readonly,
 )
-from asvtwin.sources.ais.reports import AisReport, AisStatic, ReportBatch
 from asvtwin.sources.weather.series import WeatherSample
 
 __all__ = ["HistoryStore", "SqliteHistory", "replay_session"]

@@ -19,10 +19,14 @@ SAMPLE = str(resources.files("asvtwin.sources").joinpath("data", "trondheim_synt
 def test_ais_stats_json(capsys) -> None:
     assert main(["ais", "stats", SAMPLE, "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert out["mmsis"] == 5 and out["lines"] == 474
-    assert out["errors"]["outside_scene"] == 1 and out["errors"]["duplicate"] > 0
+    # the summary counts the whole log: the Hammerfest line is a sixth MMSI, outside the scene
+    assert out["mmsis"] == 6 and out["lines"] == 474
+    assert "outside_scene" not in out["errors"] and out["errors"]["duplicate"] > 0
+    assert out["scene"]["position_reports_outside_scene"] == 1
+    assert out["scene"]["position_reports_in_scene"] == out["reports"] - 1
     assert set(out["messages_by_type"]) == {"1", "5", "18", "24"}
-    assert out["time_span"]["seconds"] == pytest.approx(897.0)
+    # the span from every tag block, the Hammerfest line (2024-02-14) included
+    assert out["time_span"]["first"] == "2024-02-14 01:16:38Z"
     assert main(["ais", "stats", SAMPLE]) == 0
     assert "rejected, by kind" in capsys.readouterr().out
     assert main(["ais", "stats", "/nonexistent.nmea"]) == 2
@@ -48,7 +52,7 @@ def test_ais_listen_synthetic_default(capsys) -> None:
     assert main(["ais", "listen", "synthetic:3", "--speed", "0", "--duration", "300",
                  "--no-live", "--rows", "10"]) == 0
     out = capsys.readouterr().out
-    assert "reports" in out and "errors: none" in out
+    assert "reports" in out and "rejected: none" in out
 
 
 def test_ais_listen_tcp_on_loopback(capsys) -> None:
@@ -92,8 +96,11 @@ def test_weather_show_offline_and_live_needs_a_user_agent(capsys, monkeypatch) -
     rows = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
     assert len(rows) == 7 and rows[0]["time"] == "2024-11-20T11:00Z"
     assert rows[0]["wind_speed_m_s"] == pytest.approx(5.3)
+    assert rows[0]["synthetic"] is True and "not MET Norway data" in rows[0]["source"]
     assert main(["weather", "show"]) == 0
-    assert "MET Norway" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "SYNTHETIC" in out and "not a forecast, not MET Norway data" in out
+    assert "CC BY" not in out  # no credit to MET Norway for data it did not make
     monkeypatch.delenv("ASVTWIN_USER_AGENT", raising=False)
     assert main(["weather", "show", "--live"]) == 2  # refused before any connection
     assert "contact" in capsys.readouterr().err  # errors go to stderr

@@ -43,7 +43,7 @@ def errors(p: AisPipeline) -> dict[str, int]:
 
 # ----------------------------------------------------------------------------- real data
 def test_real_coastal_administration_sentence_decodes_in_its_own_scene() -> None:
-    """The REFERENCE §5 line: MMSI 257198000 off Hammerfest, 8.5 kn, COG 71.3, heading 71."""
+    """A line of the Norwegian Coastal Administration open AIS feed: MMSI 257198000 off Hammerfest, 8.5 kn, COG 71.3, heading 71."""
     hammerfest = SimpleNamespace(bounds=GeoBounds(70.0, 71.0, 23.0, 24.0),
                                  frame=LocalFrame(70.66, 23.66))
     p = AisPipeline(hammerfest)  # type: ignore[arg-type]

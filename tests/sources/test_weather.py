@@ -222,7 +222,9 @@ def test_cache_file_survives_a_restart(met, tmp_path) -> None:
 def test_offline_source_and_updates() -> None:
     src = OfflineWeatherSource(align_to_unix_s=1_800_000_000.0)
     assert src.fetch().series.span_unix_s[0] == 1_800_000_000.0
-    assert src.fetch().source.startswith("fixture:")
+    fc = src.fetch()
+    assert fc.synthetic and fc.source.startswith("synthetic fixture")  # never passed as data
+    assert "not MET Norway data" in fc.source
 
     async def run():
         return [fc async for fc in weather_updates(src, clock=lambda: 0.0)]

@@ -189,13 +189,17 @@ class WeatherForecast:
     ----------
     series : WeatherSeries
     source : str
-        ``"met.no"`` or ``"fixture:<path>"``.
+        ``"met.no"``, ``"file:<path>"``, or for the bundled fixture
+        ``"synthetic fixture (...): <path>"``.
     fetched_unix_s : float or None
         When it was downloaded (None for a fixture).
     expires_unix_s : float or None
         The server's ``Expires`` [UNIX s]; no new request before it.
     stale : bool
         True when the last request failed and this is the last good data.
+    synthetic : bool
+        True for data authored for the project (the bundled fixture): not a forecast and not
+        MET Norway data; shown as such wherever it is displayed.
     """
 
     series: WeatherSeries
@@ -203,6 +207,7 @@ class WeatherForecast:
     fetched_unix_s: float | None = None
     expires_unix_s: float | None = None
     stale: bool = False
+    synthetic: bool = False
 
 
 def _iso_to_unix(text: object, field: str, label: str) -> float:
@@ -210,7 +215,8 @@ def _iso_to_unix(text: object, field: str, label: str) -> float:
         raise SourceError(f"{label}: {field} must be an ISO 8601 time string, actually: {text!r}")
     try:
         dt = datetime.fromisoformat(text)
-    except ValueError as exc:
+        dt.timestamp()
+    except (ValueError, OverflowError, OSError) as exc:
         raise SourceError(f"{label}: {field} must be an ISO 8601 time, actually: {text!r}") from exc
     if dt.tzinfo is None:
         raise SourceError(f"{label}: {field} must carry a time zone (Z), actually: {text!r}")
@@ -219,29 +225,59 @@ def _iso_to_unix(text: object, field: str, label: str) -> float:
 
 def _get(obj: object, key: str, label: str, path: str) -> Any:
     if not isinstance(obj, dict) or key not in obj:
+        what = "missing" if isinstance(obj, dict) else f"{path or 'the document'} is a " \
+            f"{type(obj).__name__}, not an object"
         raise SourceError(f"{label}: field {path}.{key} expected in the compact schema, "
-                          f"actually missing")
+                          f"actually {what}")
     return obj[key]
+
+
+def _dict(obj: object, label: str, path: str) -> dict[str, Any]:
+    if not isinstance(obj, dict):
+        raise SourceError(f"{label}: {path} must be a JSON object, actually: "
+                          f"{type(obj).__name__}")
+    return obj
+
+
+def _number(v: object) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def parse_compact(doc: dict[str, Any] | str | bytes, *, label: str = "<response>"
                   ) -> WeatherSeries:
     """Parse a Locationforecast 2.0 compact document into a :class:`WeatherSeries`.
 
+    Never raises anything but :class:`SourceError`, whatever the input (a server's broken
+    answer must not escape as a ``TypeError``).
+
     Raises
     ------
     SourceError
-        Not JSON, not the compact schema (names the missing field), wrong units, no time
-        steps, or times not strictly increasing.
+        Not UTF-8 JSON, not the compact schema (names the missing or mistyped field), wrong
+        units, no time steps, or times not strictly increasing.
     """
+    try:
+        return _parse(doc, label)
+    except SourceError:
+        raise
+    except (TypeError, AttributeError, KeyError, IndexError, ValueError, OverflowError,
+            RecursionError) as exc:  # a shape the explicit checks did not foresee
+        raise SourceError(f"{label}: not the compact schema ({type(exc).__name__}: "
+                          f"{str(exc)[:120]})") from exc
+
+
+def _parse(doc: dict[str, Any] | str | bytes, label: str) -> WeatherSeries:
     if isinstance(doc, (str, bytes)):
         try:
             doc = json.loads(doc)
         except json.JSONDecodeError as exc:
             raise SourceError(f"{label}: not valid JSON ({exc.msg} at line {exc.lineno})") from exc
+        except UnicodeDecodeError as exc:
+            raise SourceError(f"{label}: not UTF-8 text ({exc.reason} at byte "
+                              f"{exc.start})") from exc
     props = _get(doc, "properties", label, "")
     meta = _get(props, "meta", label, "properties")
-    units = _get(meta, "units", label, "properties.meta")
+    units = _dict(_get(meta, "units", label, "properties.meta"), label, "properties.meta.units")
     for key, unit in EXPECTED_UNITS.items():
         if key in units and units[key] != unit:
             raise SourceError(f"{label}: properties.meta.units.{key} must be {unit!r}, "
@@ -249,6 +285,10 @@ def parse_compact(doc: dict[str, Any] | str | bytes, *, label: str = "<response>
     updated = _iso_to_unix(_get(meta, "updated_at", label, "properties.meta"),
                            "properties.meta.updated_at", label)
     coords = _get(_get(doc, "geometry", label, ""), "coordinates", label, "geometry")
+    if not (isinstance(coords, list) and len(coords) >= 2 and _number(coords[0])
+            and _number(coords[1]) and -180 <= coords[0] <= 180 and -90 <= coords[1] <= 90):
+        raise SourceError(f"{label}: geometry.coordinates must be [lon, lat(, height)] in "
+                          f"degrees, actually: {str(coords)[:80]}")
     steps = _get(props, "timeseries", label, "properties")
     if not isinstance(steps, list) or not steps:
         raise SourceError(f"{label}: properties.timeseries must be a non-empty list, "
@@ -262,26 +302,30 @@ def parse_compact(doc: dict[str, Any] | str | bytes, *, label: str = "<response>
     for i, step in enumerate(steps):
         path = f"properties.timeseries[{i}]"
         times[i] = _iso_to_unix(_get(step, "time", label, path), f"{path}.time", label)
-        data = _get(step, "data", label, path)
-        details = _get(_get(data, "instant", label, f"{path}.data"), "details", label,
-                       f"{path}.data.instant")
+        data = _dict(_get(step, "data", label, path), label, f"{path}.data")
+        details = _dict(_get(_get(data, "instant", label, f"{path}.data"), "details", label,
+                             f"{path}.data.instant"), label, f"{path}.data.instant.details")
         for key, (lo, hi) in _RANGES.items():
-            v = details.get(key)
+            v: Any = details.get(key)
             if v is None:
                 continue
-            if not isinstance(v, (int, float)) or not lo <= v <= hi:
+            if not _number(v) or not lo <= v <= hi:
                 _log.warning("%s: %s.data.instant.details.%s must be a number in [%g, %g], "
-                             "actually %r: treated as not available", label, path, key, lo, hi, v)
+                             "actually %r: treated as not available", label, path, key, lo, hi,
+                             v)
                 continue
             cols[key][i] = float(v)
         symbol = None
         for block, hours in (("next_1_hours", 1.0), ("next_6_hours", 6.0)):
             nb = data.get(block)
             if isinstance(nb, dict):
-                amount = (nb.get("details") or {}).get("precipitation_amount")
-                if isinstance(amount, (int, float)) and amount >= 0 and np.isnan(precip[i]):
+                det = nb.get("details")
+                amount: Any = det.get("precipitation_amount") if isinstance(det, dict) else None
+                if _number(amount) and amount >= 0 and np.isnan(precip[i]):
                     precip[i] = float(amount) / hours
-                symbol = symbol or (nb.get("summary") or {}).get("symbol_code")
+                summ = nb.get("summary")
+                code = summ.get("symbol_code") if isinstance(summ, dict) else None
+                symbol = symbol or (code if isinstance(code, str) else None)
         symbols.append(symbol)
     if np.any(np.diff(times) <= 0):
         bad = int(np.argmax(np.diff(times) <= 0)) + 1
