@@ -1,0 +1,237 @@
+"""The paper's training study: three setups × several seeds, figure, tables, evaluation.
+
+:func:`run_study` trains every (setup, seed) pair with :func:`asvtwin.rl.train.train` —
+in a local process pool (default) or as Ray tasks (``ray_address``: ``"local"`` starts a
+2-CPU local Ray, any other value connects to that cluster) — then evaluates each final
+policy on held-out scenarios (:mod:`asvtwin.rl.evaluate`) and writes into ``out``:
+
+- ``episodes.csv.gz``: every training episode of every run (setup, seed, global step,
+  reward and its terms, collision, CTE, filter use);
+- ``training.png``: the paper's figure — reward, collision rate and mean |CTE| per
+  episode, rolling mean over 100 episodes, against training steps; mean over seeds with
+  the seeds' range shaded;
+- ``collisions.csv``: total collisions during training per setup and seed;
+- ``evaluation.csv``: held-out results per setup, seed and scenario family;
+- ``study.json``: the request, per-run results and timing.
+
+A run is a pure function of (setup, seed, steps, configs): the same seeds give the same
+CSV rows whichever executor ran them (torch uses one thread; the environment draws from
+seeded generators only).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import gzip
+import json
+import logging
+import os
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from asvtwin.errors import ConfigError, MissingExtraError
+from asvtwin.rl.config import SETUPS, EnvConfig, PpoConfig, check_setup
+
+__all__ = ["STUDY_FAMILIES", "load_episodes", "plot_training", "run_one", "run_study"]
+
+log = logging.getLogger(__name__)
+
+#: Scenario families of the held-out evaluation.
+STUDY_FAMILIES = ("static", "moving")
+
+
+def run_one(setup: str, seed: int, steps: int, out_dir: str, env: dict[str, Any],
+            ppo: dict[str, Any], eval_episodes: int, checkpoint_every: int,
+            resume: bool = False) -> dict[str, Any]:
+    """Train one (setup, seed) and evaluate it; a plain-data result (picklable)."""
+    from asvtwin.rl.evaluate import evaluate_policy
+    from asvtwin.rl.train import train
+
+    env_cfg = EnvConfig.from_dict(env)
+    ppo_cfg = PpoConfig(**{**ppo, "net_arch": tuple(ppo["net_arch"])})
+    res = train(setup, steps=steps, seed=seed, out_dir=out_dir, env_config=env_cfg,
+                ppo=ppo_cfg, checkpoint_every=checkpoint_every, resume=resume)
+    evals = []
+    if eval_episodes > 0:
+        for fam in STUDY_FAMILIES:
+            ev = evaluate_policy(res.policy_path, setup, fam, n_episodes=eval_episodes,
+                                 env_config=env_cfg)
+            evals.append(dict(ev.to_dict(), seed=seed))
+    return {"setup": setup, "seed": seed, "steps": res.steps, "episodes": res.episodes,
+            "collisions": res.collisions, "wall_s": res.wall_s,
+            "steps_per_s": res.steps_per_s, "out_dir": str(res.out_dir),
+            "policy_path": str(res.policy_path), "evaluation": evals}
+
+
+def _ray_map(tasks: list[tuple[Any, ...]], address: str) -> list[dict[str, Any]]:
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    try:
+        import ray
+    except ImportError as exc:  # pragma: no cover - depends on the extra
+        raise MissingExtraError("ray", "ray") from exc
+    started = False
+    if not ray.is_initialized():
+        if address == "local":
+            ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+        else:
+            ray.init(address=address, log_to_driver=False)
+        started = True
+    try:
+        remote = ray.remote(num_cpus=1)(run_one)
+        return list(ray.get([remote.remote(*t) for t in tasks]))
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def run_study(*, setups: Sequence[str] = SETUPS, seeds: Sequence[int] = (0, 1, 2),
+              steps: int = 300_000, out: str | Path, workers: int = 2,
+              ray_address: str | None = None, env: EnvConfig | None = None,
+              ppo: PpoConfig | None = None, eval_episodes: int = 20,
+              checkpoint_every: int = 50_000, resume: bool = False,
+              on_done: Callable[[dict[str, Any]], None] | None = None) -> dict[str, Any]:
+    """Train and evaluate every (setup, seed); write the CSVs, the figure and study.json."""
+    for s in setups:
+        check_setup(s)
+    if not seeds:
+        raise ConfigError("seeds must name at least one seed")
+    if not (isinstance(workers, int) and workers >= 1):
+        raise ConfigError(f"workers must be an int >= 1, actually: {workers!r}")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    env = env or EnvConfig()
+    ppo = ppo or PpoConfig()
+    env_d = env.to_dict()
+    ppo_d = dataclasses.asdict(ppo)
+    tasks = [(s, int(seed), int(steps), str(out / "runs" / f"{s}_seed{seed}"), env_d, ppo_d,
+              int(eval_episodes), int(checkpoint_every), resume)
+             for seed in seeds for s in setups]
+    t0 = time.perf_counter()
+    results: list[dict[str, Any]] = []
+    if ray_address is not None:
+        results = _ray_map(tasks, ray_address)
+        for r in results:
+            if on_done:
+                on_done(r)
+    elif workers == 1:
+        for t in tasks:
+            results.append(run_one(*t))
+            if on_done:
+                on_done(results[-1])
+    else:
+        with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn")) as ex:
+            futs = [ex.submit(run_one, *t) for t in tasks]
+            for f in futs:
+                results.append(f.result())
+                if on_done:
+                    on_done(results[-1])
+    wall = time.perf_counter() - t0
+    _write_outputs(out, results)
+    summary = {"setups": list(setups), "seeds": list(seeds), "steps": steps,
+               "workers": workers, "ray": ray_address, "wall_s": round(wall, 1),
+               "env": env_d, "ppo": ppo_d, "runs": results}
+    (out / "study.json").write_text(json.dumps(summary, indent=1))
+    return summary
+
+
+def load_episodes(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Every run's ``episodes.csv`` rows with its setup and seed, numbers parsed."""
+    rows: list[dict[str, Any]] = []
+    for r in results:
+        with open(Path(r["out_dir"]) / "episodes.csv", newline="") as fh:
+            for row in csv.DictReader(fh):
+                d: dict[str, Any] = {"setup": r["setup"], "seed": r["seed"]}
+                for k, v in row.items():
+                    d[k] = (v == "True" if v in ("True", "False") else float(v))
+                rows.append(d)
+    return rows
+
+
+def _write_outputs(out: Path, results: list[dict[str, Any]]) -> None:
+    rows = load_episodes(results)
+    keys = ["setup", "seed", "global_step", "length", "reward", "r_path", "r_colav",
+            "r_psf", "r_exists", "r_collision", "collision", "collision_moving", "goal",
+            "mean_abs_cte_m", "progress", "interventions", "fallbacks", "filter_calls",
+            "filter_time_s", "nan_actions"]
+    with gzip.open(out / "episodes.csv.gz", "wt", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(keys)
+        for r in rows:
+            w.writerow([int(r[k]) if isinstance(r[k], bool) else
+                        (round(r[k], 4) if isinstance(r[k], float) else r[k]) for k in keys])
+    with open(out / "collisions.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["setup", "seed", "steps", "episodes", "collisions",
+                    "collisions_with_moving", "last100_collision_rate",
+                    "last100_mean_abs_cte_m"])
+        for r in results:
+            mine = [x for x in rows if x["setup"] == r["setup"] and x["seed"] == r["seed"]]
+            last = mine[-100:]
+            w.writerow([r["setup"], r["seed"], r["steps"], len(mine),
+                        sum(x["collision"] for x in mine),
+                        sum(x["collision_moving"] for x in mine),
+                        round(float(np.mean([x["collision"] for x in last])), 3) if last else "",
+                        round(float(np.mean([x["mean_abs_cte_m"] for x in last])), 2)
+                        if last else ""])
+    with open(out / "evaluation.csv", "w", newline="") as fh:
+        evals = [e for r in results for e in r["evaluation"]]
+        if evals:
+            w = csv.DictWriter(fh, fieldnames=list(evals[0]))
+            w.writeheader()
+            w.writerows(evals)
+    fig = plot_training(rows)
+    fig.savefig(out / "training.png", dpi=110)
+
+
+def _rolling(x: np.ndarray, n: int = 100) -> np.ndarray:
+    c = np.cumsum(np.insert(x.astype(float), 0, 0.0))
+    k = np.arange(1, len(x) + 1)
+    lo = np.maximum(k - n, 0)
+    return (c[k] - c[lo]) / (k - lo)
+
+
+def plot_training(rows: Sequence[dict[str, Any]], *, window: int = 100) -> Any:
+    """The paper's figure: reward, collision rate, |CTE| (rolling mean over ``window``
+    episodes) against training steps; one colour per setup, mean over seeds, seeds' range
+    shaded. Returns a matplotlib Figure."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(13, 3.8), layout="constrained")
+    axes = fig.subplots(1, 3)
+    names = {"ppo": "PPO", "ppo_psf": "PPO+PSF", "ppo_psf_moving": "PPO+PSF (moving info)"}
+    quantities = (("reward", "average reward per episode"),
+                  ("collision", "collision rate"), ("mean_abs_cte_m", "mean |CTE| [m]"))
+    for setup, colour in zip(SETUPS, ("tab:red", "tab:blue", "tab:green")):
+        mine = [r for r in rows if r["setup"] == setup]
+        if not mine:
+            continue
+        seeds = sorted({r["seed"] for r in mine})
+        top = max(r["global_step"] for r in mine)
+        grid = np.linspace(0, top, 200)
+        for ax, (key, label) in zip(axes, quantities):
+            curves = []
+            for s in seeds:
+                rs = sorted((r for r in mine if r["seed"] == s), key=lambda r: r["global_step"])
+                if not rs:
+                    continue
+                xs = np.array([r["global_step"] for r in rs])
+                ys = _rolling(np.array([float(r[key]) for r in rs]), window)
+                curves.append(np.interp(grid, xs, ys, left=np.nan))
+            arr = np.array(curves)
+            with np.errstate(all="ignore"):
+                ax.plot(grid, np.nanmean(arr, axis=0), color=colour, label=names[setup])
+                ax.fill_between(grid, np.nanmin(arr, axis=0), np.nanmax(arr, axis=0),
+                                color=colour, alpha=0.2, lw=0)
+            ax.set_xlabel("training steps")
+            ax.set_ylabel(label)
+    axes[0].legend(loc="lower right", fontsize=8)
+    fig.suptitle(f"Training, rolling mean over {window} episodes (mean over seeds, range "
+                 f"shaded)")
+    return fig

@@ -1,0 +1,170 @@
+"""The environment: Gymnasium's checker, the batched kernels against shapely, seeds, NaN
+actions, and the safety filter's reach culling."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import shapely
+from shapely.geometry import LineString, Point
+
+from asvtwin.rl.config import EnvConfig
+from asvtwin.rl.kernels import cast_circles, path_features
+from asvtwin.rl.observation import SAFE_ACTION, action_to_tau, ray_bearings
+from asvtwin.rl.scenarios import random_scenario
+from asvtwin.rl.vec_env import VecPathEnv, top_speed
+from asvtwin.vessel import VesselSimulator, cybership2
+
+gym = pytest.importorskip("gymnasium")
+
+
+def test_gymnasium_env_checker_without_filter() -> None:
+    from gymnasium.utils.env_checker import check_env
+
+    from asvtwin.rl.env import PathColavEnv
+
+    env = PathColavEnv(setup="ppo")
+    check_env(env, skip_render_check=True)
+    assert env.observation_space.shape == (186,)
+
+
+@pytest.mark.parametrize("setup", ["ppo_psf", "ppo_psf_moving"])
+def test_gymnasium_env_checker_with_filter(setup: str) -> None:
+    from gymnasium.utils.env_checker import check_env
+
+    from asvtwin.rl.env import PathColavEnv
+
+    env = PathColavEnv(EnvConfig(psf_horizon=40), setup=setup)
+    check_env(env, skip_render_check=True)
+    assert len(env.world.filters) == 1
+
+
+def test_top_speed_is_the_steady_state_of_the_simulator() -> None:
+    p = cybership2()
+    sim = VesselSimulator(p, [0, 0, 0, 0, 0, 0], dt_s=0.5)
+    for _ in range(800):
+        x = sim.step([2.0, 0.0, 0.0])
+    assert top_speed(p) == pytest.approx(x[3], rel=1e-6)
+    assert top_speed(p) == pytest.approx(0.5788, abs=2e-3)  # "about 0.57 m/s" (Skjetne 2004)
+
+
+def test_lidar_kernel_against_shapely() -> None:
+    rng = np.random.default_rng(4)
+    rel = ray_bearings(180)
+    circles = np.zeros((2, 4, 3))
+    circles[:, :, :2] = rng.uniform(-60, 60, (2, 4, 2))
+    circles[:, :, 2] = rng.uniform(3, 20, (2, 4))
+    circles[1, 3, 2] = 0.0  # an unused slot
+    pos = np.array([[0.0, 0.0], [5.0, -3.0]])
+    circles[:, :, :2] += 3 * (circles[:, :, 2:3] + 5) * np.sign(circles[:, :, :2])  # keep out
+    psi = np.array([0.3, -2.0])
+    d = np.empty((2, 180))
+    k = np.empty((2, 180), dtype=np.int64)
+    cast_circles(pos, psi, rel, circles, 150.0, d, k)
+    for i in range(2):
+        discs = [Point(c[0], c[1]).buffer(c[2], quad_segs=512) for c in circles[i] if c[2] > 0]
+        union = shapely.union_all(discs)
+        for j in range(0, 180, 7):
+            a = psi[i] + rel[j]
+            ray = LineString([pos[i], pos[i] + 150 * np.array([np.cos(a), np.sin(a)])])
+            inter = ray.intersection(union)
+            want = 150.0 if inter.is_empty else Point(pos[i]).distance(inter)
+            assert d[i, j] == pytest.approx(want, abs=2e-3)
+    # inside a circle every ray returns 0 (a collision)
+    inside = circles.copy()
+    inside[0, 0] = (pos[0, 0] + 1.0, pos[0, 1], 5.0)
+    cast_circles(pos, psi, rel, inside, 150.0, d, k)
+    assert (d[0] == 0).all() and (k[0] == 0).all()
+
+
+def test_path_features_against_shapely() -> None:
+    rng = np.random.default_rng(2)
+    sc = random_scenario(rng, "static")
+    path = sc.path
+    line = LineString(path)
+    s_cum = np.concatenate([[0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
+    for _ in range(20):
+        j = int(rng.integers(0, len(path) - 1))
+        p = path[j] + rng.normal(0, 8, 2)
+        out = np.empty((1, 5))
+        idx = np.array([j])
+        path_features(p[None], np.array([0.2]), path[None], s_cum[None], idx, 300, 150.0, out)
+        assert out[0, 0] == pytest.approx(line.project(Point(p)), abs=1e-6)
+        assert abs(out[0, 1]) == pytest.approx(line.distance(Point(p)), abs=1e-6)
+        la = line.interpolate(min(out[0, 0] + 150.0, line.length))
+        bearing = np.arctan2(la.y - p[1], la.x - p[0])
+        assert np.cos(out[0, 3] - (bearing - 0.2)) == pytest.approx(1.0, abs=1e-9)
+    # a ship 10 m east of a path heading north has ε = +10 (starboard of the path)
+    straight = np.column_stack([np.linspace(0, 100, 11), np.zeros(11)])
+    sc2 = np.linspace(0, 100, 11)
+    path_features(np.array([[50.0, 10.0]]), np.array([0.0]), straight[None], sc2[None],
+                  np.array([0]), 20, 150.0, out)
+    assert out[0, 1] == pytest.approx(10.0) and out[0, 4] == pytest.approx(0.5)
+
+
+def test_same_seed_same_rollout_and_vectorised_equals_single() -> None:
+    a = VecPathEnv(3, EnvConfig(family="mixed"), seed=11)
+    b = VecPathEnv(3, EnvConfig(family="mixed"), seed=11)
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        act = rng.uniform(-1, 1, (3, 2))
+        oa, ra, *_ = a.step(act)
+        ob, rb, *_ = b.step(act)
+    np.testing.assert_array_equal(oa, ob)
+    np.testing.assert_array_equal(ra, rb)
+    # one environment alone evolves exactly as its row in the batch
+    c = VecPathEnv(1, EnvConfig(family="mixed"), seed=0)
+    for i in range(3):
+        d = VecPathEnv(3, EnvConfig(family="mixed"), seed=5)
+        sc = random_scenario(np.random.default_rng(i), "moving")
+        d.load_scenario(i, sc)
+        c.load_scenario(0, sc)
+        for _ in range(30):
+            act = np.tile([0.2, 0.1], (3, 1))
+            od, *_ = d.step(act)
+            oc, *_ = c.step(act[:1])
+        np.testing.assert_allclose(od[i], oc[0], rtol=0, atol=1e-6)
+
+
+def test_nan_actions_become_the_safe_action_and_are_counted() -> None:
+    tau, bad = action_to_tau(np.array([[np.nan, 0.5], [0.0, np.inf], [0.2, -0.3]]),
+                             np.array([2.0, 0.0, 0.15]))
+    assert bad.tolist() == [True, True, False]
+    safe, _ = action_to_tau(SAFE_ACTION[None], np.array([2.0, 0.0, 0.15]))
+    np.testing.assert_array_equal(tau[0], safe[0])
+    np.testing.assert_array_equal(safe[0], [0.0, 0.0, 0.0])
+    np.testing.assert_allclose(tau[2], [1.2, 0.0, -0.045])
+    env = VecPathEnv(2, EnvConfig(max_steps=5), seed=1)
+    for _ in range(5):
+        _, _, _, trunc, recs, _ = env.step(np.array([[np.nan, np.nan], [0.0, 0.0]]))
+    assert recs[0] is not None and recs[0].nan_actions == 5 and recs[1].nan_actions == 0
+
+
+def test_episode_ends_on_collision_with_the_collision_reward() -> None:
+    env = VecPathEnv(1, EnvConfig(), seed=3)
+    env.static[0, 0] = (env.x[0, 0] + 6 * np.cos(env.x[0, 2]),
+                        env.x[0, 1] + 6 * np.sin(env.x[0, 2]), 4.0)
+    for _ in range(60):
+        _, r, term, _, recs, _ = env.step(np.array([[1.0, 0.0]]))
+        if recs[0] is not None:
+            break
+    assert recs[0] is not None and recs[0].collision and term[0]
+    assert r[0] == env.config.reward.r_collision
+
+
+def test_filter_culling_is_exact_beyond_reach() -> None:
+    """Where the environment skips the filter (no obstacle within reach), the filter
+    itself would have passed u_L: checked on the real filter with the obstacle just
+    beyond the reach radius."""
+    from asvtwin.control import CircleObstacles
+
+    env = VecPathEnv(1, EnvConfig(setup="ppo_psf", psf_horizon=40), seed=0)
+    f = env.filters[0]
+    reach = 1.05 * env.U_max * 40 * 0.5 + f.d_safe_m + f.d_f_m
+    x = np.array([0, 0, 0, env.U_max, 0, 0])
+    for u_L in ([2.0, 0.0, 0.0], [0.7, 0.0, 0.15], [1.4, 0.0, -0.1]):
+        f.reset()
+        obs = CircleObstacles(centres=[[reach + 8.0 + 0.5, 0.0]], radii=[8.0])
+        res = f.filter(x, u_L, obs, t_s=0.0)
+        assert res.fallback == "none"
+        np.testing.assert_allclose(res.u0, u_L, atol=0.01 * np.array([2, 1, 0.3]))
