@@ -43,6 +43,7 @@ from asvtwin.scenarios.schema import (
     TargetSpec,
     Waypoints,
     WeatherSpec,
+    course_keeping_speed_m_s,
     scenario_json_schema,
     top_speed_m_s,
 )
@@ -68,6 +69,7 @@ __all__ = [
     "Waypoints",
     "WeatherSpec",
     "check_geometry",
+    "course_keeping_speed_m_s",
     "default_scenario",
     "geometry_problems",
     "library_names",

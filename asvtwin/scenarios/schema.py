@@ -63,6 +63,7 @@ __all__ = [
     "TargetSpec",
     "Waypoints",
     "WeatherSpec",
+    "course_keeping_speed_m_s",
     "scenario_json_schema",
     "top_speed_m_s",
 ]
@@ -79,6 +80,8 @@ MODEL_LENGTH_M = 1.255
 VESSEL_LENGTH_M = {"cybership2": MODEL_LENGTH_M, "cybership2_full_scale": 70.0 * MODEL_LENGTH_M}
 #: Top speed of CyberShip II at model scale [m/s] (steady surge under full thrust, ~0.57 m/s).
 _MODEL_TOP_SPEED_M_S = 0.57
+#: Fastest course-keeping speed of CyberShip II under the LOS autopilot [m/s] (model scale).
+_COURSE_KEEPING_M_S = 0.30
 #: AIS "type of ship and cargo" (ITU-R M.1371-5, table 53) for each target vessel type.
 AIS_SHIP_TYPE = {
     "fishing": 30,
@@ -99,6 +102,18 @@ VesselType = Literal[
 ]
 
 _F8 = NDArray[np.float64]
+
+
+def course_keeping_speed_m_s(length_m: float) -> float:
+    r"""Fastest speed [m/s] at which the own ship's autopilot holds a course, for a hull of
+    ``length_m`` [m] with CyberShip II's own yaw actuator.
+
+    Above about half its top speed the published CyberShip II model is course-unstable and
+    its 0.15 N m yaw thruster cannot check a swing; the LOS autopilot holds a path up to
+    :math:`0.30\sqrt{L/1.255}` m/s (0.30 m/s model scale, 2.5 m/s = 4.9 kn for the 88 m
+    ship), measured in ``tests/guidance``.
+    """
+    return _COURSE_KEEPING_M_S * math.sqrt(length_m / MODEL_LENGTH_M)
 
 
 def top_speed_m_s(length_m: float) -> float:
@@ -189,7 +204,10 @@ class OwnShipSpec(_Model):
         "los_psf (LOS through the safety filter), rl, rl_psf (the trained policy)",
     )
     astern: bool = Field(default=False, description="whether astern (negative surge) thrust is allowed")
-    cruise_speed_kn: float = Field(default=5.0, gt=0.0, description="speed along the route [kn]")
+    cruise_speed_kn: float = Field(
+        default=4.5, gt=0.0, description="speed along the route [kn]; for los/los_psf at most "
+        "0.30 sqrt(L/1.255 m) m/s (4.88 kn full scale, 0.58 kn model scale)"
+    )
     lookahead_m: float | None = Field(
         default=None, gt=0.0, description="LOS lookahead distance [m]; None: 2.5 ship lengths"
     )
@@ -224,8 +242,17 @@ class OwnShipSpec(_Model):
                     f"{name} must be <= {top_kn:.2f} kn (top speed of {self.vessel}), "
                     f"actually: {value}"
                 )
-        if self.controller in ("los", "los_psf") and not self.route:
-            raise ValueError(f"controller {self.controller!r} needs a route of >= 1 waypoint")
+        if self.controller in ("los", "los_psf"):
+            if not self.route:
+                raise ValueError(f"controller {self.controller!r} needs a route of >= 1 waypoint")
+            keep_kn = course_keeping_speed_m_s(self.length_m) / KNOT_M_S
+            if self.cruise_speed_kn > keep_kn + 1e-9:
+                raise ValueError(
+                    f"cruise_speed_kn must be <= {keep_kn:.2f} kn for controller "
+                    f"{self.controller!r}: above it {self.vessel} cannot hold a course with its "
+                    f"own yaw thruster (the model is course-unstable), actually: "
+                    f"{self.cruise_speed_kn}"
+                )
         return self
 
 
