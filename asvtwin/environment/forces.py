@@ -131,9 +131,11 @@ def current_force(params: VesselParams, x: ArrayLike, current_ned_m_s: ArrayLike
     Examples
     --------
     >>> from asvtwin.vessel import cybership2
-    >>> # drifting with a 0.1 m/s northward current: no relative flow, no force
-    >>> current_force(cybership2(), [0, 0, 0, 0.1, 0, 0], [0.1, 0.0])
-    array([[0., 0., 0.]])
+    >>> # drifting north at 0.1 m/s with a 0.1 m/s northward current: no flow past the
+    >>> # hull, so τ_d cancels the still-water drag d11(u)·u the model applies [N]
+    >>> tau_d = current_force(cybership2(), [0, 0, 0, 0.1, 0, 0], [0.1, 0.0])
+    >>> round(float(tau_d[0, 0]), 4), float(tau_d[0, 1]), float(tau_d[0, 2])
+    (0.0914, 0.0, 0.0)
     """
     x = np.ascontiguousarray(np.atleast_2d(np.asarray(x, dtype=np.float64)))
     vc = np.ascontiguousarray(np.atleast_2d(np.asarray(current_ned_m_s, dtype=np.float64)))

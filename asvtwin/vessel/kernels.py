@@ -39,7 +39,7 @@ def hydrodynamic_force_abs(u, v, r, au, av, ar, p):  # pragma: no cover - compil
     M11 = p[9]
     M22 = p[10]
     M23 = p[11]
-    # D(ν) entries (REFERENCE §1): d11, d22, d23, d32, d33
+    # D(ν) entries (Skjetne, Smogeli and Fossen 2004): d11, d22, d23, d32, d33
     d11 = -p[12] - p[13] * au - p[14] * u * u
     d22 = -p[15] - p[16] * av - p[17] * ar
     d23 = -p[18] - p[19] * av - p[20] * ar

@@ -85,7 +85,7 @@ def coriolis(p: VesselParams, nu: ArrayLike) -> NDArray[np.float64]:
 
 
 def damping(p: VesselParams, nu: ArrayLike) -> NDArray[np.float64]:
-    """D(ν) = D_L + D_NL(ν), shape (n, 3, 3) (REFERENCE §1's d11 ... d33)."""
+    """D(ν) = D_L + D_NL(ν), shape (n, 3, 3) (d11 ... d33 of Skjetne, Smogeli and Fossen 2004, CyberShip II)."""
     nu = np.atleast_2d(np.asarray(nu, dtype=float))
     u, v, r = nu[:, 0], nu[:, 1], nu[:, 2]
     au, av, ar = np.abs(u), np.abs(v), np.abs(r)

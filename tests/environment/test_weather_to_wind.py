@@ -1,4 +1,4 @@
-"""The weather the twin receives drives the wind-force model (issue 3 → issue 2)."""
+"""The weather the twin receives drives the wind-force model (sources → environment)."""
 
 from __future__ import annotations
 

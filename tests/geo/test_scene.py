@@ -13,7 +13,7 @@ import pytest
 from asvtwin.errors import SceneError
 from asvtwin.geo import SCENE_FORMAT, Scene, default_scene, load_scene
 
-# Known points of the fjord (lat, lon, on land?), from /work/shared/data/README.md.
+# Known points of the fjord (lat, lon, on land?), places as named on OpenStreetMap.
 KNOWN = [
     ("Tautra", 63.583, 10.62, True),
     ("mid-fjord", 63.50, 10.20, False),

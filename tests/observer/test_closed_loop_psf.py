@@ -1,4 +1,4 @@
-"""Closed loop (issue 6, item 3): the safety filter with the observer's d̂ vs without.
+"""Closed loop: the safety filter with the observer's d̂ vs without.
 
 CyberShip II, a following current of 0.06-0.09 m/s (model scale; 1-1.5 kn at full scale)
 setting the ship onto a coast or a rock ahead, the naive autopilot (full thrust, heading

@@ -16,7 +16,7 @@ from asvtwin.vessel import (
 
 
 def test_cybership2_mass_matrix_matches_reference():
-    # REFERENCE §1: M = [[25.8, 0, 0], [0, 33.8, 1.0948], [0, 1.0948, 2.76]]
+    # Skjetne, Smogeli and Fossen (2004), CyberShip II: M = [[25.8, 0, 0], [0, 33.8, 1.0948], [0, 1.0948, 2.76]]
     M = cybership2().M
     np.testing.assert_allclose(
         M, [[25.8, 0, 0], [0, 33.8, 1.0948], [0, 1.0948, 2.76]], atol=1e-12

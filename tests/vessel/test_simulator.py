@@ -20,7 +20,7 @@ IDEAL = P.replace(actuators=P.actuators.ideal())
 
 
 def test_steady_surge_speed_under_2N():
-    # REFERENCE §1: d11(u)·u = 2 N gives about 0.57 m/s
+    # Skjetne et al. (2004) damping: d11(u)·u = 2 N gives about 0.57 m/s
     U = steady_surge_speed(P, 2.0)
     assert U == pytest.approx(0.5788, abs=1e-4)
     assert (0.7225 + 1.3274 * U + 5.8664 * U * U) * U == pytest.approx(2.0, abs=1e-10)
