@@ -62,7 +62,7 @@ Receive = Callable[[], Awaitable[Message]]
 Send = Callable[[Message], Awaitable[None]]
 
 #: Cells of the relief grid along north and east (the 3-D view's terrain).
-RELIEF_SHAPE = (200, 300)
+RELIEF_SHAPE = (150, 225)
 
 
 def web_dir() -> Path:

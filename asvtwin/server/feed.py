@@ -106,6 +106,12 @@ class _EncodedCache:
                 self._frame = Frame(snap.seq, float(snap.t_s), encode(snap), tuple(snap.events))
             return self._frame
 
+    def get_encoded(self, snap: Snapshot, data: bytes) -> Frame:
+        with self._lock:
+            if self._frame is None or self._frame.data is not data:
+                self._frame = Frame(snap.seq, float(snap.t_s), data, tuple(snap.events))
+            return self._frame
+
 
 class TwinFeed:
     """A live :class:`~asvtwin.twin.runtime.Twin` as a feed (contract: ``latest()``,
@@ -121,6 +127,16 @@ class TwinFeed:
         self._manage = manage_loop
 
     def frame(self) -> Frame | None:
+        latest_bytes = getattr(self.twin, "latest_bytes", None)
+        if latest_bytes is not None:
+            # the twin's own encoding (the recorder's bytes): no second encode per tick. The
+            # twin publishes snapshot and bytes together under its lock, so when the bytes
+            # did not change around latest(), they belong to that snapshot.
+            b1 = latest_bytes()
+            snap = self.twin.latest()
+            if b1 is not None and latest_bytes() is b1:
+                return self._cache.get_encoded(snap, b1)
+            return self._cache.get(snap)
         return self._cache.get(self.twin.latest())
 
     def scene(self) -> Scene:
