@@ -40,10 +40,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import numpy as np
 
     from asvtwin.control import PsfConfig, SafetyFilter
@@ -59,45 +55,11 @@ def _demo(args: argparse.Namespace) -> int:
     free = run_closed_loop(params, scene, None, mode="unfiltered", duration_s=args.duration)
     run = run_closed_loop(params, scene, psf, duration_s=args.duration)
     res = run.results
-    # the first call where the filter intervened: its plan is the picture's green path
-    k_show = next((k for k, r in enumerate(res) if r.intervened), 0)
-    shown = res[k_show]
+    from asvtwin.plots import save
+    from asvtwin.plots.psf import psf_demo_figure
 
-    fig, ax = plt.subplots(figsize=(7.5, 7.5))
-    for (n, e), r in zip(scene.circles.centres, scene.circles.radii):
-        ax.add_patch(plt.Circle((e, n), r, color="0.55", zorder=2))
-    crit_idx = sorted({a.index for r in res for a in r.active if a.kind == "circle"})
-    for j in crit_idx:  # critical region: obstacle grown by d_safe
-        (n, e), r = scene.circles.centres[j], scene.circles.radii[j]
-        ax.add_patch(plt.Circle((e, n), r + psf.d_safe_m, color="red", alpha=0.25, zorder=1,
-                                label="critical region (r + d_safe)" if j == crit_idx[0]
-                                else None))
-        ax.add_patch(plt.Circle((e, n), r + psf.d_safe_m + psf.d_f_m, fill=False, ls=":",
-                                color="red", zorder=1,
-                                label="terminal clearance (r + d_safe + d_f)"
-                                if j == crit_idx[0] else None))
-    ax.plot(free.x[:, 1], free.x[:, 0], "--", color="0.3", lw=1.2,
-            label="naive controller, unfiltered")
-    ax.plot(run.x[:, 1], run.x[:, 0], color="tab:blue", lw=2.0, label="filtered (executed)")
-    ax.plot(shown.x_pred[:, 1], shown.x_pred[:, 0], color="green", lw=2.5,
-            label=f"predicted safe path at t = {k_show * psf.config.dt_s:.1f} s")
-    ax.plot(shown.x_pred[0, 1], shown.x_pred[0, 0], "o", color="green")
-    ax.plot(scene.x0[1], scene.x0[0], "k^", ms=9, label="start")
-    ax.set_xlabel("east [m]")
-    ax.set_ylabel("north [m]")
-    ax.set_aspect("equal")
-    ax.set_xlim(-25, 25)
-    ax.set_ylim(-5, 45)
-    ax.grid(alpha=0.3)
-    ax.legend(loc="lower right", fontsize=8)
-    n_int = sum(r.intervened for r in res)
-    ax.set_title(f"Predictive safety filter ({res[0].backend}, N={psf.config.N}, seed "
-                 f"{args.seed})\nmin clearance {run.min_clearance_m:.2f} m filtered vs "
-                 f"{free.min_clearance_m:.2f} m unfiltered; {n_int}/{len(res)} "
-                 "steps corrected", fontsize=10)
-    png = out / "psf_demo.png"
-    fig.savefig(png, dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    png = save(psf_demo_figure(scene, free, run, psf, seed=args.seed), out / "psf_demo.png",
+               dpi=110)
 
     path = out / "psf_delta_u.csv"
     with path.open("w", newline="") as fh:

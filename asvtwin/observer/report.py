@@ -53,8 +53,6 @@ __all__ = [
     "write_report",
 ]
 
-_DOF = ("surge", "sway", "yaw")
-
 
 def _scale_force(params: VesselParams) -> NDArray[np.float64]:
     """Force scale per DOF [N, N, Nm]: surge thrust range for surge and sway, yaw range."""
@@ -218,40 +216,6 @@ def fault_suite(params: VesselParams, model: ResidualModel, *, n_runs: int = 20,
 
 
 # --------------------------------------------------------------------------- report
-def _plot(path: Path, panels: list[tuple[str, VesselParams, RunResult, NDArray[np.float64]]]
-          ) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(len(panels), 3, figsize=(14, 2.6 * len(panels)), squeeze=False)
-    units = ("kN", "kN", "kNm")
-    for row, (title, p, res, dh) in enumerate(panels):
-        full = p.length > 20
-        k = 1e-3 if full else 1.0
-        u = units if full else ("N", "N", "Nm")
-        for j in range(3):
-            ax = axes[row, j]
-            ax.plot(res.t_s, dh[:, 0, j] * k, color="tab:red", lw=0.8, alpha=0.8,
-                    label=r"estimate $\hat{d}$")
-            ax.plot(res.t_s, res.tau_d[:, 0, j] * k, color="k", lw=1.3,
-                    label=r"true $\tau_d$")
-            ax.set_title(f"{title}: {_DOF[j]}", fontsize=9)
-            ax.set_ylabel(u[j], fontsize=8)
-            ax.tick_params(labelsize=7)
-            ax.grid(alpha=0.3)
-        axes[row, 0].legend(fontsize=7, loc="best")
-    for j in range(3):
-        axes[-1, j].set_xlabel("time [s]", fontsize=8)
-    fig.suptitle(r"Disturbance observer: true $\tau_d$ vs estimate $\hat{d}$ "
-                 "(with sensor noise; first of the seeded runs)",
-                 fontsize=11)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
 def _fmt(v: float) -> str:
     return "—" if not math.isfinite(v) else f"{v:.3g}"
 
@@ -321,5 +285,8 @@ def write_report(out_dir: str | Path, vessels: Sequence[str] = ("cybership2",
     paths["md"].write_text("\n".join(lines) + "\n")
     paths["json"].write_text(json.dumps({"seed": seed, "observer": rows,
                                          "faults": fault_rows}, indent=2, default=float))
-    _plot(paths["png"], panels)
+    from asvtwin.plots import save
+    from asvtwin.plots.observer import observer_figure
+
+    save(observer_figure(panels), paths["png"], dpi=110)
     return paths

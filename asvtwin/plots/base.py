@@ -41,19 +41,20 @@ WATER = "#e6f0f7"
 
 
 def new_figure(width_in: float, height_in: float, **kw: Any) -> Figure:
-    """A Figure not registered with pyplot (no global state, no backend change)."""
+    """A Figure not registered with pyplot (no global state, no backend change), on an
+    Agg canvas of its own so it can be drawn and saved anywhere."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     kw.setdefault("layout", "constrained")
-    return Figure(figsize=(width_in, height_in), **kw)
+    fig = Figure(figsize=(width_in, height_in), **kw)
+    FigureCanvasAgg(fig)
+    return fig
 
 
 def save(fig: Figure, path: str | Path, *, dpi: int = 130) -> Path:
-    """Write ``fig`` as PNG through the Agg canvas; return the path."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
+    """Write ``fig`` as PNG; return the path."""
     path = Path(path)
-    FigureCanvasAgg(fig)
     fig.savefig(path, dpi=dpi)
     return path
 
@@ -96,15 +97,18 @@ def draw_coast(ax: Axes, land: Any, bounds_ne: Sequence[float], *,
     """
     import shapely
     from matplotlib.patches import PathPatch
+    from shapely.geometry.polygon import orient
     from matplotlib.path import Path as MplPath
 
     geom = getattr(land, "polygons", land)
     n0, e0, n1, e1 = (float(b) for b in bounds_ne)
     clipped = geom.intersection(shapely.box(n0, e0, n1, e1))
     count = 0
-    for poly in shapely.get_parts(clipped):
-        if poly.geom_type != "Polygon" or poly.is_empty:
+    for part in shapely.get_parts(clipped):
+        if part.geom_type != "Polygon" or part.is_empty:
             continue
+        # exterior counter-clockwise, holes clockwise: the non-zero fill leaves holes open
+        poly = orient(part, sign=1.0)
         verts, codes = [], []
         for ring in (poly.exterior, *poly.interiors):
             ne = np.asarray(ring.coords)
