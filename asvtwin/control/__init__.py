@@ -14,7 +14,14 @@ Examples
 from __future__ import annotations
 
 from asvtwin.control.backends import BACKENDS, available_backends
-from asvtwin.control.fallback import BackupPlan, Fallback
+from asvtwin.control.colreg import (
+    ENCOUNTER_KINDS,
+    EncounterLimits,
+    Encounters,
+    classify_encounters,
+    cpa_tcpa,
+)
+from asvtwin.control.fallback import BackupPlan, Candidate, Fallback
 from asvtwin.control.obstacles import (
     CircleObstacles,
     CoastSegments,
@@ -22,6 +29,7 @@ from asvtwin.control.obstacles import (
     Obstacles,
     covariance_inflation,
     lidar_circles,
+    obstacle_labels,
     stage_circles,
 )
 from asvtwin.control.psf import ActiveConstraint, FilterResult, PsfConfig, SafetyFilter
@@ -34,8 +42,15 @@ from asvtwin.control.terminal_set import (
 
 __all__ = [
     "BACKENDS",
+    "ENCOUNTER_KINDS",
     "ActiveConstraint",
     "BackupPlan",
+    "Candidate",
+    "EncounterLimits",
+    "Encounters",
+    "classify_encounters",
+    "cpa_tcpa",
+    "obstacle_labels",
     "CircleObstacles",
     "CoastSegments",
     "Fallback",

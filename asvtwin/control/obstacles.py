@@ -3,8 +3,9 @@
 Four kinds, each a frozen dataclass of arrays in the local NED frame [m]:
 
 - :class:`CircleObstacles` — static circles (buoys, islets, LiDAR returns);
-- :func:`lidar_circles` — LiDAR returns turned into circles as in the predecessors
-  (REFERENCE §2: returns within 30 m, radius 8 m at their scale, at most 5 per sector);
+- :func:`lidar_circles` — LiDAR returns turned into circles as in the safety filter of
+  Vaaler et al. (2023) (returns within 30 m, radius 8 m at their scale, at most 5 per
+  sector of 9);
 - :class:`MovingObstacles` — circles moving along predicted centres over the horizon
   (ground truth or the tracker's constant-velocity predictions); the tracker's position
   covariance inflates the radius by κ·√λ_max(Σ_k), κ from the chi-square quantile;
@@ -12,7 +13,8 @@ Four kinds, each a frozen dataclass of arrays in the local NED frame [m]:
   the distance to each *segment* (not its line) ≥ d_safe, a C¹ constraint.
 
 :func:`stage_circles` flattens static and moving circles to per-stage arrays, the form
-the OCP's parameters take.
+the OCP's parameters take; :func:`obstacle_labels` names each circle for the filter's
+explanation ("track 2", "obstacle 5") from the optional ``ids``.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ __all__ = [
     "Obstacles",
     "covariance_inflation",
     "lidar_circles",
+    "obstacle_labels",
     "stage_circles",
 ]
 
@@ -55,18 +58,32 @@ def _radii(r: ArrayLike, n: int, what: str) -> _F8:
     return radii
 
 
+def _ids(ids: Sequence[int | str] | None, n: int, what: str) -> tuple[int | str, ...] | None:
+    if ids is None:
+        return None
+    out = tuple(ids)
+    if len(out) != n:
+        raise StateError(f"{what} ids must have one entry per obstacle ({n}), actually: "
+                         f"{len(out)}")
+    return out
+
+
 @dataclass(frozen=True)
 class CircleObstacles:
-    """Static circles: ``centres`` (m, 2) [north, east] m and ``radii`` (m,) m > 0."""
+    """Static circles: ``centres`` (m, 2) [north, east] m and ``radii`` (m,) m > 0;
+    ``ids`` optional identities (e.g. a chart object's or a track's number) that the
+    filter's explanation names."""
 
     centres: _F8
     radii: _F8
+    ids: tuple[int | str, ...] | None = None
 
     def __post_init__(self) -> None:
         c = np.asarray(self.centres, dtype=float).reshape(-1, 2)
         _finite(c, "circle centres")
         object.__setattr__(self, "centres", c)
         object.__setattr__(self, "radii", _radii(self.radii, c.shape[0], "circle radii"))
+        object.__setattr__(self, "ids", _ids(self.ids, c.shape[0], "circle"))
 
     def __len__(self) -> int:
         return int(self.centres.shape[0])
@@ -101,12 +118,15 @@ class MovingObstacles:
         Position covariances of the prediction [m²]; inflate the radius per stage.
     confidence : float
         Probability mass the inflated circle covers (see :func:`covariance_inflation`).
+    ids : tuple of int or str, optional
+        Identities (track numbers, MMSI) the filter's explanation names.
     """
 
     positions: _F8
     radii: _F8
     covariances: _F8 | None = None
     confidence: float = 0.95
+    ids: tuple[int | str, ...] | None = None
 
     def __post_init__(self) -> None:
         pos = np.asarray(self.positions, dtype=float)
@@ -125,6 +145,7 @@ class MovingObstacles:
                 raise StateError(f"moving obstacle covariances must have shape "
                                  f"{pos.shape[:2] + (2, 2)}, actually: {cov.shape}")
             object.__setattr__(self, "covariances", cov)
+        object.__setattr__(self, "ids", _ids(self.ids, pos.shape[0], "moving obstacle"))
 
     def __len__(self) -> int:
         return int(self.positions.shape[0])
@@ -132,7 +153,8 @@ class MovingObstacles:
     @classmethod
     def constant_velocity(cls, positions: ArrayLike, velocities: ArrayLike, radii: ArrayLike,
                           *, N: int, dt_s: float, covariances: ArrayLike | None = None,
-                          process_noise: float = 0.0) -> MovingObstacles:
+                          process_noise: float = 0.0,
+                          ids: Sequence[int | str] | None = None) -> MovingObstacles:
         """Predict m obstacles at constant velocity over N stages of ``dt_s``.
 
         ``positions`` and ``velocities`` are (m, 2) [m, m/s]; ``covariances`` (m, 2, 2)
@@ -146,7 +168,8 @@ class MovingObstacles:
         if covariances is not None:
             c0 = np.asarray(covariances, dtype=float).reshape(-1, 2, 2)
             cov = c0[:, None] + process_noise * t[None, :, None, None] * np.eye(2)
-        return cls(positions=pos, radii=np.asarray(radii, dtype=float), covariances=cov)
+        return cls(positions=pos, radii=np.asarray(radii, dtype=float), covariances=cov,
+                   ids=None if ids is None else tuple(ids))
 
     def effective_radii(self) -> _F8:
         """Radii inflated by the covariance, shape (m, N+1) [m]."""
@@ -190,7 +213,7 @@ Obstacles = CircleObstacles | MovingObstacles | CoastSegments | Sequence[
 def lidar_circles(origin: ArrayLike, angles_rad: ArrayLike, ranges_m: ArrayLike, *,
                   max_range_m: float = 30.0, radius_m: float = 8.0, n_sectors: int = 9,
                   per_sector: int = 5) -> CircleObstacles:
-    """LiDAR returns as circles whose nearest point is the return (REFERENCE §2).
+    """LiDAR returns as circles whose nearest point is the return (Vaaler et al. 2023).
 
     Returns beyond ``max_range_m`` are dropped; in each of ``n_sectors`` equal angular
     sectors the ``per_sector`` closest returns are kept. Each circle of ``radius_m`` is
@@ -263,3 +286,35 @@ def stage_circles(obstacles: Obstacles | None, N: int) -> tuple[_F8, _F8, _F8]:
     segs = [o.segments for o in items if isinstance(o, CoastSegments)]
     segments = np.concatenate(segs, axis=0) if segs else np.zeros((0, 4))
     return centres, radii, segments
+
+
+def obstacle_labels(obstacles: Obstacles | None) -> tuple[list[str], NDArray[np.bool_]]:
+    """A name per circle, in :func:`stage_circles`' order, and whether it moves.
+
+    Moving obstacles with integer ids are "track <id>", other ids are used as given;
+    without ids: "vessel <k>" (moving) or "obstacle <k>" (static), k counting within
+    the kind from 0.
+    """
+    names: list[str] = []
+    moving: list[bool] = []
+    n_static = n_moving = 0
+    for o in _as_list(obstacles):
+        if isinstance(o, CoastSegments):
+            continue
+        is_moving = isinstance(o, MovingObstacles)
+        for i in range(len(o)):
+            if o.ids is not None:
+                ident = o.ids[i]
+                names.append(f"track {ident}" if is_moving and isinstance(ident, int)
+                             else (f"obstacle {ident}" if isinstance(ident, int)
+                                   else str(ident)))
+            elif is_moving:
+                names.append(f"vessel {n_moving + i}")
+            else:
+                names.append(f"obstacle {n_static + i}")
+        if is_moving:
+            n_moving += len(o)
+        else:
+            n_static += len(o)
+        moving.extend([is_moving] * len(o))
+    return names, np.asarray(moving, dtype=bool)

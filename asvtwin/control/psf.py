@@ -1,40 +1,48 @@
 """The predictive safety filter: minimally correct any input so the vessel stays safe.
 
-:class:`SafetyFilter` solves the paper's OCP (a)-(g) (see
-:mod:`asvtwin.control.backends.ocp`) once per call: the learner's input ``u_L`` is kept
-if some plan that starts with it keeps ≥ d_safe from every obstacle over the horizon and
-ends in the terminal set (≥ d_safe + d_f from obstacles, velocity in the braking
-ellipsoid P_f); otherwise the closest such input in the W-norm is returned.
+:class:`SafetyFilter` keeps the learner's input ``u_L`` when a plan that starts with it
+is certified safe (≥ d_safe from every obstacle over the horizon, ≥ d_safe + d_f and
+inside the terminal ellipsoid P_f at its end); otherwise it solves the paper's OCP
+(a)-(g) (:mod:`asvtwin.control.backends.ocp`) for the closest such input in the W-norm.
 
-Every plan a backend returns is *re-simulated* on the model from the current state and
-certified on the simulated states before use: this covers SQP-RTI's one-QP answers and
-any solver that claims more than it did. An uncertified call falls back to the tail of
-the last certified plan, then to the braking backup (:mod:`asvtwin.control.fallback`);
-the raw input is never passed through.
+Every plan, the learner's or a backend's, is *re-simulated* on the model from the current
+state and certified on the simulated states before use: this covers SQP-RTI's one-QP
+answers and any solver that claims more than it did. When no fresh plan is certified the
+filter scores its fallback candidates (the last plan's tail, the solver's best effort,
+braking, astern, hard turns either way; :mod:`asvtwin.control.fallback`) against the
+obstacles known *now* and applies the best; the raw input is never passed through.
+Inside d_safe (or inside an obstacle's circle) the filter does not raise: plans are then
+certified by a *recovery* rule (no obstacle margin decreases and all are restored by the
+horizon's end).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
+import warnings
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from asvtwin.control.backends import available_backends, make_backend
 from asvtwin.control.backends.ocp import DUMMY_DISTANCE_FACTOR, OcpSpec
-from asvtwin.control.fallback import BackupPlan, Fallback, backup_input
+from asvtwin.control.colreg import EncounterLimits, classify_encounters
+from asvtwin.control.explain import describe_change, describe_obstacle
+from asvtwin.control.fallback import BackupPlan, Candidate, Fallback, candidate_inputs, damp_yaw
 from asvtwin.control.kernels import certify, rollout, warm_up
-from asvtwin.control.obstacles import CoastSegments, Obstacles, stage_circles
+from asvtwin.control.obstacles import CoastSegments, Obstacles, obstacle_labels, stage_circles
 from asvtwin.control.result import CS2_LENGTH_M, ActiveConstraint, FilterResult, PsfConfig
 from asvtwin.control.terminal_set import TerminalSet, compute_terminal_set
-from asvtwin.errors import ConfigError, StateError
+from asvtwin.errors import ConfigError, SolverError, StateError
 from asvtwin.vessel.params import VesselParams
 
 __all__ = ["ActiveConstraint", "FilterResult", "PsfConfig", "SafetyFilter"]
 
 log = logging.getLogger(__name__)
 _F8 = NDArray[np.float64]
+_TERM_TOL = 0.05  # terminal ellipsoid tolerance of the certification (5 %)
 
 
 def _validate(a: ArrayLike | None, n: int, what: str, fields: tuple[str, ...]) -> _F8:
@@ -56,8 +64,15 @@ class SafetyFilter:
     params : VesselParams
         The vessel: the same coefficients as the simulator's (actuator lag is not
         modelled: the plan's stages are much longer than the thruster time constant).
+        Its actuator bounds are the OCP's input bounds, astern thrust included.
     config : PsfConfig
-        Settings.
+        Settings; ``self.config`` holds them resolved (``dt_s`` a number).
+
+    Raises
+    ------
+    ConfigError
+        A horizon N·Δt shorter than the braking time from top speed into the terminal
+        set (the plan could never end safe), unbounded actuators, an unknown backend.
 
     Examples
     --------
@@ -72,9 +87,12 @@ class SafetyFilter:
 
     def __init__(self, params: VesselParams, *, config: PsfConfig | None = None) -> None:
         self.params = params
-        self.config = cfg = config or PsfConfig()
+        cfg = config or PsfConfig()
         scale = params.length / CS2_LENGTH_M
         sq = math.sqrt(scale)
+        # Froude similarity: times scale by √λ, so the horizon covers the same manoeuvre
+        cfg = dataclasses.replace(cfg, dt_s=cfg.dt_s if cfg.dt_s is not None else 0.5 * sq)
+        self.config = cfg
         self.d_safe_m = cfg.d_safe_m if cfg.d_safe_m is not None else params.length
         self.d_f_m = cfg.d_f_m if cfg.d_f_m is not None else 6.0 * params.length
         self.nu_max = np.asarray(cfg.nu_max if cfg.nu_max is not None
@@ -94,9 +112,11 @@ class SafetyFilter:
         self.terminal_set: TerminalSet = compute_terminal_set(
             params, d_f_m=self.d_f_m, nu_max=(self.nu_max[0], self.nu_max[1], r_term),
             k_r=k_r)
-        rng = self.u_ub - self.u_lb
+        self.u_range = self.u_ub - self.u_lb
+        rng = self.u_range
         # eq. (W): W = diag(γ_i / (u_ub,i − u_lb,i)²); a fixed DOF (range 0) gets weight 0
         W = np.where(rng > 0, np.asarray(cfg.gamma) / np.where(rng > 0, rng, 1.0) ** 2, 0.0)
+        self._W = W
         d = params.to_dict()
         d.pop("actuators")
         self.spec = OcpSpec(
@@ -107,10 +127,6 @@ class SafetyFilter:
             slack_l1=cfg.slack_l1, slack_l2=cfg.slack_l2,
             P_f=tuple(self.terminal_set.P_f.ravel()),
         )
-        name = cfg.backend if cfg.backend != "auto" else available_backends()[0]
-        opts: dict[str, object] = ({"rti_steps": cfg.rti_steps} if name == "acados"
-                                   else {"max_iter": cfg.max_iter})
-        self.backend = make_backend(name, self.spec, **opts)
         # constants of every call, computed once
         N, s = cfg.N, self.spec
         self._coef = np.ascontiguousarray(params.packed())  # the planning model's
@@ -118,9 +134,20 @@ class SafetyFilter:
         self._clear = np.full(N + 1, self.d_safe_m)
         self._clear[N] += self.d_f_m  # eq. (f)
         self._P_f = np.ascontiguousarray(self.terminal_set.P_f)
+        warm_up()
+        self.braking_time_s = self._braking_time()
+        horizon = N * cfg.dt_s
+        if horizon < self.braking_time_s:
+            raise ConfigError(
+                f"PsfConfig: the horizon N·dt_s = {N} × {cfg.dt_s:g} s = {horizon:.1f} s is "
+                f"shorter than the braking time of {params.name!r} from top speed into the "
+                f"terminal set ({self.braking_time_s:.1f} s): no plan could end safe; raise N "
+                f"or dt_s (default dt_s for this hull: {0.5 * sq:.2f} s)")
+        self.backend = self._make_backend(cfg)
         far = DUMMY_DISTANCE_FACTOR * params.length
         self._P = np.zeros((N + 1, s.n_p))  # stage parameters, rewritten every call
-        self._P[:, 3] = self._clear
+        # the solver plans with the certification tolerance as margin (eq. (e)/(f))
+        self._P[:, 3] = self._clear + self.certify_tol_m
         self._circ = self._P[:, 4: 4 + 3 * s.n_circles].reshape(N + 1, s.n_circles, 3)
         if not np.shares_memory(self._circ, self._P):  # pragma: no cover - numpy layout
             raise AssertionError("the circle slots must be a view of the stage parameters")
@@ -128,11 +155,44 @@ class SafetyFilter:
                                        far * (1 + 0.01 * np.arange(s.n_circles))], axis=1)
         self._dummy_segment = np.array([-far, -far, -far, -far + 1.0])
         self._vel_tol = 0.01 * self.nu_max
-        warm_up()
+        self._limits = EncounterLimits.for_length(params.length)
         self._plan: BackupPlan | None = None
         self._last: tuple[float, _F8, _F8] | None = None  # (t, x_pred, u_pred)
+        self._solved_last = False
         self._t: float | None = None
         self._dropped_logged = False
+
+    def _make_backend(self, cfg: PsfConfig):  # type: ignore[no-untyped-def]
+        name = cfg.backend if cfg.backend != "auto" else available_backends()[0]
+        opts: dict[str, object] = ({"rti_steps": cfg.rti_steps} if name == "acados"
+                                   else {"max_iter": cfg.max_iter})
+        try:
+            return make_backend(name, self.spec, **opts)
+        except SolverError as exc:
+            if cfg.backend != "auto" or name == "casadi-ipopt":
+                raise
+            warnings.warn(
+                f"safety filter: the acados backend cannot be built here ({exc}); using "
+                "casadi-ipopt, ~30x slower per call. For the fast backend install gcc and "
+                "make and the extra: pip install 'asvtwin[acados]'", RuntimeWarning,
+                stacklevel=3)
+            return make_backend("casadi-ipopt", self.spec, max_iter=cfg.max_iter)
+
+    def _braking_time(self) -> float:
+        """Time [s] from top speed (full ahead thrust, steady) to the terminal set by the
+        braking backup (coasting, yaw damped), on the planning model."""
+        dt = self.config.dt_s
+        n = 400
+        full = np.zeros((n, 3))
+        full[:, 0] = self.u_ub[0]
+        X = np.empty((n + 1, 6))
+        rollout(np.zeros(6), full, self._zero3, self._coef, dt, 1, X)  # reach top speed
+        x_top = np.zeros(6)
+        x_top[3] = X[-1, 3]
+        rollout(x_top, np.zeros((n, 3)), self._zero3, self._coef, dt, 1, X)
+        V = np.einsum("ki,ij,kj->k", X[:, 3:], self._P_f, X[:, 3:])
+        inside = np.flatnonzero(V <= 1.0)
+        return float(inside[0] * dt) if inside.size else math.inf
 
     # --------------------------------------------------------------------- helpers
     def rollout(self, x0: ArrayLike, u: ArrayLike, d_hat: ArrayLike | None = None) -> _F8:
@@ -157,26 +217,30 @@ class SafetyFilter:
     def reset(self) -> None:
         """Forget the last plan and the solver's iterate (new episode)."""
         self._plan, self._last, self._t = None, None, None
+        self._solved_last = False
         self.backend.reset()
 
     def _stage_params(self, x: _F8, d_hat: _F8, centres: _F8, radii: _F8, segs: _F8,
-                      ) -> tuple[_F8, NDArray[np.intp], NDArray[np.intp]]:
+                      paths: list[_F8]) -> tuple[_F8, NDArray[np.intp], NDArray[np.intp]]:
         """Stage parameters (N+1, n_p) (an internal buffer: backends copy it) and the
-        indices of the circles and segments that got a slot."""
+        indices of the circles and segments that got a slot: those that come nearest to
+        the predicted ``paths`` (each (N+1, 2)), stage by stage for moving circles."""
         s = self.spec
         m, k = centres.shape[1], segs.shape[0]
         ci = np.arange(m)
-        if m > s.n_circles:  # keep the circles that come nearest over the horizon
-            gap = np.linalg.norm(centres - x[None, None, :2], axis=2) - radii
+        if m > s.n_circles:
+            gap = np.min([np.linalg.norm(centres - p[:, None, :], axis=2) for p in paths],
+                         axis=0) - radii
             ci = np.sort(np.argsort(gap.min(axis=0))[: s.n_circles])
         si = np.arange(k)
         if k > s.n_segments:
-            dist = CoastSegments(segs).distances(x[None, :2])[0]
+            pts = np.concatenate([p[::2] for p in paths] + [x[None, :2]])
+            dist = CoastSegments(segs).distances(pts).min(axis=0)
             si = np.sort(np.argsort(dist)[: s.n_segments])
         if (m > s.n_circles or k > s.n_segments) and not self._dropped_logged:
-            log.warning("safety filter: %d circles / %d segments given, using the nearest "
-                        "%d / %d (raise PsfConfig.n_circles / n_segments)", m, k,
-                        s.n_circles, s.n_segments)
+            log.info("safety filter: %d circles / %d segments given, the %d / %d nearest to "
+                     "the predicted path go to the solver, all are certified", m, k,
+                     s.n_circles, s.n_segments)
             self._dropped_logged = True
         P = self._P  # column 3 (clearance, eq. (e)/(f)) is constant
         P[:, 0:3] = d_hat
@@ -208,6 +272,51 @@ class SafetyFilter:
                                     self._clear, self._P_f, out)
         return out, float(low), float(term), bool(finite)
 
+    def _judge(self, margins: _F8, low: float, term: float, finite: bool, m0: _F8,
+               strict: bool = False) -> tuple[bool, str, float]:
+        """Is a re-simulated plan certified? Returns (certified, reason if not, closest
+        approach margin over stages 1..N against d_safe alone [m]).
+
+        Normal rule: every margin ≥ −tol (≥ 0 when ``strict``), terminal ellipsoid within
+        5 %. Recovery rule (some stage-0 margin ``m0`` < 0): no obstacle's margin falls
+        below min(its stage-0 margin, 0) − tol, and every margin is restored by stage N.
+        """
+        if not finite or math.isnan(low):
+            return False, "plan is not finite (NaN/inf states)", -math.inf
+        if margins.shape[1] == 0:
+            path_low = math.inf
+        else:
+            path_low = min(float(margins[1:-1].min()) if margins.shape[0] > 2 else math.inf,
+                           float(margins[-1].min()) + self.d_f_m)
+        tol = 0.0 if strict else self.certify_tol_m
+        if m0.size and m0.min() < 0:  # recovery
+            floor = np.minimum(m0, 0.0) - tol
+            ok = bool(np.all(margins[1:] >= floor)) and bool(np.all(margins[-1] >= -tol))
+        else:
+            ok = low >= -tol
+        if not ok:
+            return False, f"plan violates obstacle clearance (closest {path_low:+.2f} m " \
+                          "against d_safe)", path_low
+        if term < -_TERM_TOL:
+            return False, "plan ends outside the terminal set", path_low
+        return True, "", path_low
+
+    def _colreg_guess(self, x: _F8, u_L: _F8, centres: _F8, moving: NDArray[np.bool_],
+                      ) -> _F8 | None:
+        """A starboard-turn input guess when a head-on or crossing vessel asks for one."""
+        if not (self.config.colreg and moving.any()) or centres.shape[0] < 2:
+            return None
+        idx = np.flatnonzero(moving)
+        v = (centres[1, idx] - centres[0, idx]) / self.config.dt_s
+        enc = classify_encounters(x, centres[0, idx], v, limits=self._limits)
+        if not enc.starboard_expected.any():
+            return None
+        N = self.config.N
+        U = np.zeros((N, 3))
+        U[:, 0] = u_L[0]
+        U[: max(1, N // 3), 2] = self.u_ub[2]
+        return U
+
     # ------------------------------------------------------------------------ filter
     def filter(self, x: ArrayLike, u_L: ArrayLike, obstacles: Obstacles | None = None,
                d_hat: ArrayLike | None = None, *, t_s: float | None = None) -> FilterResult:
@@ -218,7 +327,8 @@ class SafetyFilter:
         x : array_like, shape (6,)
             Own state ``[x, y, ψ, u, v, r]`` [m, m, rad, m/s, m/s, rad/s], NED.
         u_L : array_like, shape (3,)
-            The learner's input [N, N, Nm].
+            The learner's input [N, N, Nm]; clipped to the actuator range (said in the
+            explanation).
         obstacles : CircleObstacles, MovingObstacles, CoastSegments or a sequence
             What to keep clear of (moving ones predicted over the N+1 stage times).
         d_hat : array_like, shape (3,), optional
@@ -229,70 +339,158 @@ class SafetyFilter:
         Raises
         ------
         StateError
-            NaN/inf in ``x``, ``u_L`` or ``d_hat``; a non-positive radius; an obstacle
-            that contains the own ship's position.
+            Malformed input only: NaN/inf or wrong shapes in ``x``, ``u_L``, ``d_hat``
+            or the obstacles, a non-positive radius. An obstacle that contains the own
+            ship, or a solver that raises, still returns an input (recovery, fallback).
         """
-        cfg, N = self.config, self.config.N
+        cfg, N, dt = self.config, self.config.N, float(self.config.dt_s or 0.5)
         x = _validate(x, 6, "state x", ("x", "y", "psi", "u", "v", "r"))
-        u_L = _validate(u_L, 3, "learner input u_L", ("tau_u", "tau_v", "tau_r"))
+        u_given = _validate(u_L, 3, "learner input u_L", ("tau_u", "tau_v", "tau_r"))
         d = np.zeros(3) if d_hat is None else _validate(d_hat, 3, "disturbance d_hat",
                                                         ("tau_u", "tau_v", "tau_r"))
         if t_s is None:
-            t_s = 0.0 if self._t is None else self._t + cfg.dt_s
+            t_s = 0.0 if self._t is None else self._t + dt
         elif not math.isfinite(t_s):
             raise StateError(f"t_s must be finite, actually: {t_s}")
         self._t = float(t_s)
+        uL = np.clip(u_given, self.u_lb, self.u_ub)
+        notes = []
+        if not np.array_equal(uL, u_given):
+            notes.append(f"u_L {np.round(u_given, 4).tolist()} outside the actuator range "
+                         f"[{self.u_lb.tolist()}, {self.u_ub.tolist()}], clipped")
         centres, radii, segs = stage_circles(obstacles, N)
-        if centres.shape[1]:
-            gap0 = np.linalg.norm(centres[0] - x[:2], axis=1) - radii[0]
-            i = int(np.argmin(gap0))
-            if gap0[i] < 0:
-                raise StateError(
-                    f"obstacle circle {i} (centre {centres[0, i].tolist()} m, radius "
-                    f"{radii[0, i]:.3f} m) contains the own ship at {x[:2].tolist()}: "
-                    f"distance to its edge {gap0[i]:.3f} m, expected >= 0")
-        P, ci, si = self._stage_params(x, d, centres, radii, segs)
-        xg, ug = self._guess(x, u_L, d, t_s)
-        # a cold start (no previous plan) gets a few solves to converge (RTI: one QP each)
-        attempts = 1 if self._last is not None else cfg.cold_start_solves
-        iters, t_solve = 0, 0.0
-        for _ in range(attempts):
-            try:
-                raw = self.backend.solve(x, u_L, P, xg, ug)
-                U = np.clip(raw.u, self.u_lb, self.u_ub)
-                status, ok = raw.status, raw.success
-                iters += raw.iterations
-                t_solve += raw.solve_time_s
-            except RuntimeError as exc:  # a solver crash is a failed solve, not a crash
-                U, status, ok = ug, f"solver error: {exc}", False
-            X = self.rollout(x, U, d)  # certify on the model, not on the solver's claim
-            margins, low, term, finite = self._certify(X, centres, radii, segs)
-            obst_ok = low >= -self.certify_tol_m  # False for NaN, True without obstacles
-            certified = ok and obst_ok and term >= -0.05 and finite
-            if ok and np.isfinite(raw.x).all():
-                self._last = (t_s, raw.x, U)  # the next warm start, certified or not
-                xg, ug = raw.x, U
-            if certified:
-                break
-        if certified:
-            u0, fb = U[0].copy(), Fallback.NONE
-            self._plan = BackupPlan(u=U, x=X, t0_s=t_s, dt_s=cfg.dt_s)
-        else:
-            why = ("solver failed" if not ok else "plan violates obstacle clearance"
-                   if not obst_ok else "plan ends outside the terminal set")
-            status = f"{status}; not certified: {why}"
-            u0, fb = backup_input(self.params, x, t_s, self._plan, self.terminal_set.k_r)
-            if fb is Fallback.PLAN_TAIL and self._plan is not None:
-                _, ut = self._plan.tail(t_s)
-                U = np.zeros((N, 3))  # the tail, then no input
-                U[: len(ut)] = ut
-            else:
-                U = np.empty((N, 3))
-                U[:] = u0
+        labels, moving = obstacle_labels(obstacles)
+        # 1. a plan starting with u_L: the shifted last plan, or coasting with yaw damped
+        tries = self._learner_plans(x, uL, t_s)
+        first = None
+        for U in tries:
             X = self.rollout(x, U, d)
-            margins, _, term, _ = self._certify(X, centres, radii, segs)
-        return self._result(x, u_L, u0, X, U, margins, term, ci, si, centres, radii,
-                            certified, status, iters, t_solve, fb)
+            margins, low, term, finite = self._certify(X, centres, radii, segs)
+            m0 = margins[0]
+            ok, why, path_low = self._judge(margins, low, term, finite, m0, strict=True)
+            if first is None:
+                first = (X, margins, term, why)
+            if ok:
+                self._plan = BackupPlan(u=U, x=X, t0_s=t_s, dt_s=dt)
+                self._last = (t_s, X, U)
+                self._solved_last = False
+                return self._result(x, uL, u_given, uL.copy(), X, U, margins, term, centres,
+                                    radii, segs, labels, moving, True, "u_L certified", "",
+                                    0, 0.0, Fallback.NONE, first, (), notes, passed=True)
+        assert first is not None
+        X_L, margins_L, _, why_L = first
+        m0 = margins_L[0]
+        # 2. the OCP, warm-started from the last solver plan (COLREG: from a starboard turn)
+        xg, ug = self._guess(x, uL, d, t_s)
+        sb = self._colreg_guess(x, uL, centres, moving)
+        if sb is not None and ug[: max(1, N // 3), 2].sum() <= 0:
+            cand = Candidate(Fallback.TURN_STARBOARD, "colreg", sb, max(1, N // 3))
+            xg, ug = self._simulate(x, cand, d)
+        P, ci, si = self._stage_params(x, d, centres, radii, segs, [X_L[:, :2], xg[:, :2]])
+        attempts = 1 if self._solved_last else cfg.cold_start_solves
+        iters, t_solve, status, solver_why = 0, 0.0, "", ""
+        best: tuple | None = None  # (X, U, margins, term, certified, why, path_low)
+        scored: list[tuple[str, str, float, bool]] = []
+        chosen_kind, chosen_detail = Fallback.NONE, ""
+        for rnd in range(1 + cfg.uncertified_retries):
+            for _ in range(attempts):
+                try:
+                    raw = self.backend.solve(x, uL, P, xg, ug)
+                    U = np.clip(raw.u, self.u_lb, self.u_ub)
+                    status, ok = raw.status, raw.success
+                    iters += raw.iterations
+                    t_solve += raw.solve_time_s
+                except Exception as exc:  # any solver failure ends in the checked fallback
+                    U, status, ok = ug, f"solver error: {type(exc).__name__}: {exc}", False
+                    raw = None
+                X = self.rollout(x, U, d)  # certify on the model, not on the solver's claim
+                margins, low, term, finite = self._certify(X, centres, radii, segs)
+                cert, why, path_low = self._judge(margins, low, term, finite, m0)
+                if not ok:
+                    cert, why = False, f"solver failed ({status})"
+                if raw is not None and ok and np.isfinite(raw.x).all():
+                    self._last = (t_s, raw.x, U)  # the next warm start, certified or not
+                    xg, ug = raw.x, U
+                best = (X, U, margins, term, cert, why, path_low)
+                solver_why = why
+                if cert:
+                    break
+            self._solved_last = True
+            if best is not None and best[4]:
+                chosen_kind = Fallback.NONE
+                break
+            # 3. checked fallback candidates, scored against the obstacles known now
+            solver_u = best[1] if best is not None and np.all(np.isfinite(best[1])) else None
+            solver_low = best[6] if best is not None else -math.inf
+            pick, scored = self._choose(x, uL, t_s, d, centres, radii, segs, m0, solver_u)
+            chosen_kind, chosen_detail = pick[0], pick[1]
+            best = pick[2:]
+            if solver_u is None or (solver_low < 0 <= best[6]):
+                # the solver is in a bad basin (its plan cuts into d_safe, or failed):
+                # re-initialise it from the best candidate; otherwise let SQP continue
+                xg, ug = best[0], best[1]
+                self._last = (t_s, xg, ug)
+            attempts = 1
+        assert best is not None
+        X, U, margins, term, cert, why, _ = best
+        if cert:
+            self._plan = BackupPlan(u=U, x=X, t0_s=t_s, dt_s=dt)
+        reason = "" if chosen_kind is Fallback.NONE else f"solver: {solver_why}"
+        return self._result(x, uL, u_given, U[0].copy(), X, U, margins, term, centres,
+                            radii, segs, labels, moving, cert, status, reason, iters,
+                            t_solve, chosen_kind, first, tuple(scored), notes,
+                            detail=chosen_detail)
+
+    def _learner_plans(self, x: _F8, uL: _F8, t_s: float) -> list[_F8]:
+        """Input sequences that start with u_L: u_L then the last plan's remainder, and
+        u_L then coasting with the yaw rate damped."""
+        N = self.config.N
+        out = []
+        if self._plan is not None:
+            i = self._plan.index_at(t_s)
+            if 0 <= i < N - 1:
+                U = np.zeros((N, 3))
+                rest = self._plan.u[i + 1:]
+                U[1: 1 + len(rest)] = rest
+                U[0] = uL
+                out.append(U)
+        U = np.zeros((N, 3))
+        U[0] = uL
+        out.append(U)
+        return out
+
+    def _simulate(self, x: _F8, c: Candidate, d: _F8) -> tuple[_F8, _F8]:
+        """States and inputs of a candidate, its yaw damping filled in (two passes)."""
+        U = c.u.copy()
+        X = self.rollout(x, U, d)
+        if c.damp_from < U.shape[0]:
+            k_r = self.terminal_set.k_r
+            for _ in range(2):
+                damp_yaw(U, X, k_r, self.u_lb[2], self.u_ub[2], c.damp_from)
+                X = self.rollout(x, U, d)
+        return X, U
+
+    def _choose(self, x: _F8, uL: _F8, t_s: float, d: _F8, centres: _F8, radii: _F8,
+                segs: _F8, m0: _F8, solver_u: _F8 | None) -> tuple[tuple, list]:
+        """Score every candidate; the certified one nearest u_L (W-norm), else the one
+        with the largest closest approach. Returns (kind, detail, X, U, margins, term,
+        certified, why, closest) and the scores (kind, detail, closest [m], certified)."""
+        cands = candidate_inputs(self.params, x, t_s, self.config.N, self._plan, solver_u)
+        rows = []
+        for c in cands:
+            X, U = self._simulate(x, c, d)
+            margins, low, term, finite = self._certify(X, centres, radii, segs)
+            cert, why, path_low = self._judge(margins, low, term, finite, m0)
+            dist = float(np.sum(self._W * (U[0] - uL) ** 2))
+            rows.append((c.kind, c.detail, X, U, margins, term, cert, why, path_low, dist))
+        certified = [r for r in rows if r[6]]
+        if certified:
+            pick = min(certified, key=lambda r: r[9])
+        else:
+            pick = max(rows, key=lambda r: (r[8] if math.isfinite(r[8]) else -1e300, r[5]))
+        scores = sorted(((r[0].value, r[1], round(float(r[8] + self.d_safe_m), 4),
+                          bool(r[6])) for r in rows), key=lambda q: -q[2])
+        return pick[:9], scores
 
     def _guess(self, x: _F8, u_L: _F8, d: _F8, t_s: float) -> tuple[_F8, _F8]:
         """Primal guess: the last plan shifted to ``t_s`` (its last stage repeated), or a
@@ -300,7 +498,7 @@ class SafetyFilter:
         N = self.config.N
         if self._last is not None:
             t0, X, U = self._last
-            i = round((t_s - t0) / self.config.dt_s)
+            i = round((t_s - t0) / float(self.config.dt_s or 0.5))
             if 0 <= i < N:
                 Ug = np.empty((N, 3))
                 Ug[: N - i] = U[i:]
@@ -315,40 +513,89 @@ class SafetyFilter:
         Ug[1:, 2] = np.clip(-self.terminal_set.k_r * x[5], self.u_lb[2], self.u_ub[2])
         return self.rollout(x, Ug, d), Ug
 
-    def _result(self, x: _F8, u_L: _F8, u0: _F8, X: _F8, U: _F8, margins: _F8, term: float,
-                ci: NDArray[np.intp], si: NDArray[np.intp], centres: _F8, radii: _F8,
-                certified: bool, status: str, iters: int, t_solve: float, fb: Fallback,
-                ) -> FilterResult:
-        N = self.config.N
+    def _result(self, x: _F8, uL: _F8, u_given: _F8, u0: _F8, X: _F8, U: _F8, margins: _F8,
+                term: float, centres: _F8, radii: _F8, segs: _F8, labels: list[str],
+                moving: NDArray[np.bool_], certified: bool, status: str, reason: str,
+                iters: int, t_solve: float, fb: Fallback, first: tuple,
+                scored: tuple, notes: list[str], *, passed: bool = False,
+                detail: str = "") -> FilterResult:
+        N, dt = self.config.N, float(self.config.dt_s or 0.5)
         m = centres.shape[1]
         tol = 0.05 * self.params.length
+        seg_label = "the coast"
+        names = labels + [seg_label] * segs.shape[0]
+        d_rel = np.abs(uL - u0)
+        intervened = bool(np.any((self.u_range > 0) & (d_rel > 0.01 * self.u_range)))
+        recovery = bool(margins.shape[1] and margins[0].min() < 0)
         active: list[ActiveConstraint] = []
-        hit: set[int] = set()
+        critical: list[tuple[float, float, float]] = []
+        crit_stages: set[int] = set()
         if margins.shape[1]:
             ks, js = np.nonzero(margins[1:] <= tol)
-            if ks.size:
-                vals = margins[1:][ks, js].tolist()
-                for k, j, v in zip(ks.tolist(), js.tolist(), vals):
-                    if j < m:
-                        active.append(ActiveConstraint("circle", j, k + 1, v))
-                        hit.add(j)
-                    else:
-                        active.append(ActiveConstraint("segment", j - m, k + 1, v))
+            for k, j in zip((ks + 1).tolist(), js.tolist()):
+                crit_stages.add(k)
+                if intervened:
+                    v = float(margins[k, j])
+                    kind = "circle" if j < m else "segment"
+                    active.append(ActiveConstraint(kind, j if j < m else j - m, k, v,
+                                                   k * dt, names[j]))
+            # the binding circles at the stage where they bind (predicted positions)
+            for j in sorted({j for j in js.tolist() if j < m}):
+                k = int(np.argmin(margins[1:, j])) + 1
+                critical.append((float(centres[k, j, 0]), float(centres[k, j, 1]),
+                                 float(radii[k, j] + self.d_safe_m)))
         vel = self.nu_max - np.abs(X[:, 3:])
-        ks, js = np.nonzero(vel[1:] <= self._vel_tol)
-        if ks.size:
-            vals = vel[1:][ks, js].tolist()
-            active.extend(ActiveConstraint("velocity", j, k + 1, v)
-                          for k, j, v in zip(ks.tolist(), js.tolist(), vals))
-        if term <= 0.02:
-            active.append(ActiveConstraint("terminal_set", 0, N, term))
+        if intervened:
+            ks, js = np.nonzero(vel[1:] <= self._vel_tol)
+            active.extend(ActiveConstraint("velocity", j, k + 1, float(vel[k + 1, j]),
+                                           (k + 1) * dt) for k, j in zip(ks.tolist(),
+                                                                         js.tolist()))
+            if term <= 0.02:
+                active.append(ActiveConstraint("terminal_set", 0, N, term, N * dt))
         obst = margins.min(axis=1) if margins.shape[1] else np.full(N + 1, np.inf)
-        critical = tuple((float(centres[0, j, 0]), float(centres[0, j, 1]),
-                          float(radii[0, j] + self.d_safe_m)) for j in sorted(hit))
+        # the explanation: cause (from the plan that starts with u_L), change, what it keeps
+        X_L, margins_L, term_L, why_L = first
+        keeps = (float(np.min(obst[1:-1] + self.d_safe_m)) if margins.shape[1] else math.inf)
+        words: list[str] = []
+        if passed or not intervened:
+            if margins.shape[1]:
+                j = int(np.argmin(margins[0]))
+                near = describe_obstacle(j, x, labels, moving, centres, radii, segs, dt)
+                words.append(f"no intervention; nearest: {near}")
+            else:
+                words.append("no intervention; no obstacle known")
+        else:
+            if margins_L.shape[1] and float(margins_L[1:].min()) < 0:
+                k_c, j_c = np.unravel_index(int(np.argmin(margins_L[1:])), margins_L[1:].shape)
+                cause = describe_obstacle(int(j_c), x, labels, moving, centres, radii, segs,
+                                          dt)
+                if k_c + 1 == N and margins_L[N, j_c] + self.d_f_m >= 0:
+                    words.append(f"{cause}; u_L leaves no room to stop: the plan must end "
+                                 f"≥ d_safe + d_f = {self.d_safe_m + self.d_f_m:.1f} m clear")
+                else:
+                    words.append(f"{cause}; u_L comes within d_safe in {(k_c + 1) * dt:.0f} s")
+            elif term_L < -_TERM_TOL:
+                words.append("u_L leaves no room to stop within d_f by the horizon's end")
+            else:
+                words.append("u_L unsafe")
+            words.append(describe_change(uL, u0, self.u_lb, self.u_ub))
+        if fb is not Fallback.NONE:
+            best_alt = ", ".join(f"{k} {c:.1f} m" for k, _, c, _ in scored[:4])
+            words.append(f"no certified plan ({reason}); fallback {fb.value} ({detail})"
+                         f"{'' if certified else ', not certified'}; candidates: {best_alt}")
+        if math.isfinite(keeps) and margins.shape[1]:
+            words.append(f"the plan keeps ≥ {keeps:.1f} m")
+        if recovery:
+            words.append(f"inside d_safe now ({float(margins[0].min()) + self.d_safe_m:.1f} m "
+                         "from an obstacle): recovering")
+        words.extend(notes)
         return FilterResult(
-            u0=u0, delta_u=u_L - u0, x_pred=X, u_pred=U, obstacle_margin_m=obst,
+            u0=u0, delta_u=u_given - u0, x_pred=X, u_pred=U, obstacle_margin_m=obst,
             velocity_margin=vel, terminal_margin=term, active=tuple(active),
-            success=certified, status=status, iterations=int(iters),
-            solve_time_s=float(t_solve), fallback=fb.value, backend=self.backend.name,
-            critical=critical,
+            success=bool(certified and fb is Fallback.NONE), status=status,
+            iterations=int(iters), solve_time_s=float(t_solve), fallback=fb.value,
+            backend=self.backend.name, critical=tuple(critical),
+            explanation="; ".join(words), reason=reason,
+            critical_stages=tuple(sorted(crit_stages)), candidates=scored,
+            recovery=recovery, passed_through=passed, u_L=uL, u_range=self.u_range,
         )

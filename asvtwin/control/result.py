@@ -21,13 +21,18 @@ CS2_LENGTH_M = 1.255
 
 @dataclass(frozen=True)
 class PsfConfig:
-    """Settings of the safety filter (defaults: REFERENCE §2, model scale, Froude-scaled
+    """Settings of the safety filter (defaults: the published settings of Vaaler et al.
+    2023 at model scale, Froude-scaled
     by the vessel's length for other hulls when left at None).
 
     Attributes
     ----------
-    N, dt_s : int, float
-        Stages and stage length [s] (50 x 0.5 s).
+    N : int
+        Stages (50).
+    dt_s : float, optional
+        Stage length [s]; default 0.5 s at model scale, Froude-scaled by √(L / 1.255 m)
+        (4.18 s for the 88 m hull). The horizon N·Δt must cover the braking time from top
+        speed into the terminal set, or :class:`SafetyFilter` raises ConfigError.
     backend : str
         ``"auto"`` (fastest installed: acados, else casadi-ipopt), ``"acados"``,
         ``"casadi-ipopt"`` or ``"casadi-fatrop"``.
@@ -47,7 +52,8 @@ class PsfConfig:
     slack_l1, slack_l2 : float
         L1 (100 in the published code) and small L2 penalty of the slacks.
     n_circles, n_segments : int
-        Obstacle slots: the nearest circles and coast segments are used.
+        Obstacle slots: the circles and coast segments nearest to the predicted path (the
+        previous plan and the learner's) are given to the solver; certification checks all.
     certify_tol_m : float, optional
         Tolerance of the certification of a plan [m]; default 2 % of the ship length.
     max_iter : int
@@ -55,11 +61,18 @@ class PsfConfig:
     rti_steps : int
         Largest number of SQP-RTI steps per call (acados).
     cold_start_solves : int
-        Solver calls allowed when there is no previous plan to warm-start from.
+        Solver calls allowed when there is no previous solver plan to warm-start from.
+    uncertified_retries : int
+        Solves more when the answer is not certified, each warm-started from the best
+        fallback candidate (SQP-RTI: one more QP linearised at a safe trajectory).
+    colreg : bool
+        Prefer the starboard side where COLREG rules 14, 15 and 17(c) expect it: the
+        solver is warm-started from a starboard turn when a head-on or crossing vessel
+        (classified from the moving obstacles) makes the learner's plan unsafe.
     """
 
     N: int = 50
-    dt_s: float = 0.5
+    dt_s: float | None = None
     backend: str = "auto"
     d_safe_m: float | None = None
     d_f_m: float | None = None
@@ -70,16 +83,19 @@ class PsfConfig:
     slack_l1: float = 100.0
     slack_l2: float = 1.0
     n_circles: int = 20
-    n_segments: int = 4
+    n_segments: int = 12
     certify_tol_m: float | None = None
     max_iter: int = 200
     rti_steps: int = 1
     cold_start_solves: int = 5
+    uncertified_retries: int = 1
+    colreg: bool = True
 
     def __post_init__(self) -> None:
         checks: list[tuple[str, bool, str]] = [
             ("N", isinstance(self.N, int) and 1 <= self.N <= 500, "an int in [1, 500]"),
-            ("dt_s", math.isfinite(self.dt_s) and self.dt_s > 0, "> 0"),
+            ("dt_s", self.dt_s is None or (math.isfinite(self.dt_s) and self.dt_s > 0),
+             "None or > 0"),
             ("later_weight", self.later_weight >= 0, ">= 0"),
             ("slack_l1", self.slack_l1 > 0, "> 0"),
             ("slack_l2", self.slack_l2 >= 0, ">= 0"),
@@ -88,6 +104,7 @@ class PsfConfig:
             ("max_iter", self.max_iter >= 1, ">= 1"),
             ("rti_steps", self.rti_steps >= 1, ">= 1"),
             ("cold_start_solves", self.cold_start_solves >= 1, ">= 1"),
+            ("uncertified_retries", 0 <= self.uncertified_retries <= 5, "in [0, 5]"),
             ("gamma", len(self.gamma) == 3 and min(self.gamma) >= 0, "3 values >= 0"),
         ]
         for name in ("d_safe_m", "d_f_m", "terminal_r_max", "certify_tol_m"):
@@ -108,13 +125,17 @@ class ActiveConstraint:
 
     ``kind`` is ``"circle"``, ``"segment"``, ``"velocity"`` or ``"terminal_set"``;
     ``index`` the obstacle's index in the order given (circles: static then moving) or the
-    velocity component; ``stage`` k; ``margin`` its value [m, m/s or 1].
+    velocity component; ``stage`` k; ``margin`` its value [m, m/s or 1]; ``time_s`` the
+    stage's time ahead of the call [s]; ``label`` the obstacle's name ("track 2", "the
+    coast").
     """
 
     kind: Literal["circle", "segment", "velocity", "terminal_set"]
     index: int
     stage: int
     margin: float
+    time_s: float = float("nan")
+    label: str = ""
 
 
 @dataclass(frozen=True)
@@ -147,9 +168,32 @@ class FilterResult:
     solve_time_s : float
         Solver wall time [s].
     fallback : str
-        ``"none"``, ``"plan_tail"`` or ``"braking"``.
+        ``"none"`` or the checked fallback candidate applied: ``"plan_tail"``,
+        ``"solver_plan"``, ``"braking"``, ``"astern"``, ``"turn_starboard"``,
+        ``"turn_port"`` (:class:`asvtwin.control.fallback.Fallback`).
     backend : str
         Backend name.
+    critical : tuple of (north, east, radius)
+        The binding obstacles at the stage where they bind (a moving one's *predicted*
+        position), grown by d_safe [m]: the red region of the paper's figure.
+    explanation : str
+        What the filter did and why, for a navigator.
+    reason : str
+        Why the fresh plan was not used ("" when it was).
+    critical_stages : tuple of int
+        Stages of the applied plan within the activity tolerance of an obstacle.
+    candidates : tuple of (kind, detail, closest approach [m], certified)
+        Fallback candidates scored on this call (empty when none were needed).
+    recovery : bool
+        The own ship was within d_safe of an obstacle at the call (or inside its circle):
+        plans were certified by the recovery rule (no margin decreases, all restored by
+        the horizon's end).
+    passed_through : bool
+        u_L was kept because a plan starting with it was certified (no solve needed).
+    u_L : ndarray, shape (3,)
+        The learner's input as used: clipped to the actuator range (see ``explanation``).
+    u_range : ndarray, shape (3,)
+        Actuator range u_ub − u_lb [N, N, Nm] (for :attr:`intervened`).
     """
 
     u0: _F8
@@ -167,8 +211,22 @@ class FilterResult:
     fallback: str
     backend: str
     critical: tuple[tuple[float, float, float], ...] = field(default=())
+    explanation: str = ""
+    reason: str = ""
+    critical_stages: tuple[int, ...] = field(default=())
+    candidates: tuple[tuple[str, str, float, bool], ...] = field(default=())
+    recovery: bool = False
+    passed_through: bool = False
+    u_L: _F8 | None = None
+    u_range: _F8 | None = None
 
     @property
     def intervened(self) -> bool:
-        """True when u_0 differs from u_L by more than 1 % of the input range."""
-        return bool(np.max(np.abs(self.delta_u)) > 1e-2)
+        """True when u_0 differs from the (range-clipped) u_L by more than 1 % of the
+        actuator range in some actuated DOF (an unactuated DOF, range 0, never counts;
+        without ``u_range``: |δu| > 0.01 in the input's units)."""
+        if self.u_range is None or self.u_L is None:
+            return bool(np.max(np.abs(self.delta_u)) > 1e-2)
+        rng = self.u_range
+        d = np.abs(self.u_L - self.u0)
+        return bool(np.any((rng > 0) & (d > 0.01 * rng)))

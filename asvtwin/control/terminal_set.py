@@ -2,7 +2,8 @@
 
 Constraint (g) of the paper's OCP asks ν_Nᵀ P_f ν_N ≤ 1 for an invariant set of the
 velocity dynamics. Centred on cruise speed and sized only by the velocity bounds, the
-published ellipsoid says nothing about space (REFERENCE §2). Here it is tied to the
+published ellipsoid (Vaaler et al. 2023, hard-coded diag(0.25, 0.29, 24.5) around
+cruise speed) says nothing about space. Here it is tied to the
 terminal distance d_f of constraint (f): from every velocity in the ellipsoid, the
 *braking backup* (no thrust, yaw rate damped by τ_r = −k_r r) keeps the velocity inside
 the ellipsoid and the vessel comes to rest within d_f. So x_N in the terminal set plus

@@ -74,30 +74,42 @@ class _Failing:
                            iterations=200, solve_time_s=0.0)
 
 
-def test_forced_failure_uses_plan_tail_then_braking(params, default_backend):
+def test_forced_failure_uses_a_checked_candidate_never_u_L(params, default_backend):
+    """Every solve fails: the filter keeps u_L only behind a certified plan that starts
+    with it, otherwise applies a scored candidate; the ship never comes within d_safe."""
     psf = SafetyFilter(params, config=PsfConfig(backend=default_backend))
-    x = np.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.05])
+    psf.backend = _Failing(psf.backend)
+    x = np.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.0])
     wall = CircleObstacles([[14.0, 0.0]], [3.0])
-    good = psf.filter(x, FULL_AHEAD, wall, t_s=0.0)
-    assert good.fallback == "none"
-    psf.backend = _Failing(psf.backend)
-    for k in (1, 2, 7):
-        bad = psf.filter(x, FULL_AHEAD, wall, t_s=0.5 * k)
-        assert bad.fallback == "plan_tail" and not bad.success
-        np.testing.assert_allclose(bad.u0, good.u_pred[k])
-        assert "not certified" in bad.status
-    late = psf.filter(x, FULL_AHEAD, wall, t_s=0.5 * 50)
-    assert late.fallback == "braking"
-    # braking backup: no thrust, yaw rate damped (τ_r = −k_r r), never the raw input
-    np.testing.assert_allclose(late.u0, [0.0, 0.0, -psf.terminal_set.k_r * 0.05])
-    assert not np.allclose(late.u0, FULL_AHEAD)
+    fallbacks, closest = 0, np.inf
+    for k in range(40):
+        res = psf.filter(x, FULL_AHEAD, wall, t_s=0.5 * k)
+        if res.fallback == "none":  # only a certified plan that starts with u_L
+            assert res.passed_through and res.success
+        else:
+            fallbacks += 1
+            assert not res.success and not np.allclose(res.u0, FULL_AHEAD)
+            kinds = {c[0] for c in res.candidates}
+            assert {"braking", "turn_starboard", "turn_port"} <= kinds
+            assert "solver failed" in res.reason and "fallback" in res.explanation
+            best = max(c[2] for c in res.candidates)
+            applied = max(c[2] for c in res.candidates if c[0] == res.fallback)
+            assert any(c[3] for c in res.candidates) or applied == best
+        x = psf.rollout(x, res.u_pred)[1]  # the state the answer leads to
+        closest = min(closest, float(np.hypot(x[0] - 14.0, x[1])) - 3.0)
+    assert fallbacks >= 1
+    assert closest >= psf.d_safe_m - psf.certify_tol_m
 
 
-def test_failure_without_any_plan_brakes(params, default_backend):
+def test_failure_without_any_plan_applies_the_best_candidate(params, default_backend):
     psf = SafetyFilter(params, config=PsfConfig(backend=default_backend))
     psf.backend = _Failing(psf.backend)
-    res = psf.filter([0, 0, 0, 0.4, 0, 0], FULL_AHEAD, CircleObstacles([[9.0, 0]], [2.0]))
-    assert res.fallback == "braking" and res.u0[0] == 0.0
+    rock = CircleObstacles([[9.0, 0]], [2.0])
+    res = psf.filter([0, 0, 0, 0.4, 0, 0], FULL_AHEAD, rock)
+    assert res.fallback != "none" and not np.allclose(res.u0, FULL_AHEAD)
+    best = max(c[2] for c in res.candidates)
+    applied = [c for c in res.candidates if c[0] == res.fallback]
+    assert any(c[3] for c in res.candidates) or applied[0][2] == best
 
 
 def test_infeasible_from_start_is_a_documented_fallback(psf):
@@ -111,7 +123,7 @@ def test_infeasible_from_start_is_a_documented_fallback(psf):
     if res.fallback == "none":  # the solver found a certified escape after all
         assert res.obstacle_margin_m[1:].min() > -psf.certify_tol_m
     else:
-        assert res.fallback == "braking" and "not certified" in res.status
+        assert res.reason and res.candidates and "obstacle 0" in res.explanation
 
 
 @pytest.mark.parametrize(
@@ -127,14 +139,16 @@ def test_bad_state_or_input_raises(psf, x, u, match):
         psf.filter(x, u, None, t_s=0.0)
 
 
-def test_obstacle_containing_own_ship_raises(psf):
-    with pytest.raises(StateError, match="contains the own ship"):
-        psf.filter([5.0, 5.0, 0, 0.2, 0, 0], FULL_AHEAD,
-                   CircleObstacles([[5.5, 5.0]], [1.0]), t_s=0.0)
+def test_obstacle_containing_own_ship_returns_an_input(psf):
+    psf.reset()
+    res = psf.filter([5.0, 5.0, 0, 0.2, 0, 0], FULL_AHEAD,
+                     CircleObstacles([[5.5, 5.0]], [1.0]), t_s=0.0)
+    assert res.recovery and not np.allclose(res.u0, FULL_AHEAD)
+    assert "obstacle 0" in res.explanation and "recovering" in res.explanation
 
 
 def test_bad_config_names_the_field():
-    with pytest.raises(ConfigError, match="PsfConfig.dt_s must be > 0, actually: -0.5"):
+    with pytest.raises(ConfigError, match="PsfConfig.dt_s must be None or > 0, actually: -0.5"):
         PsfConfig(dt_s=-0.5)
     with pytest.raises(ConfigError, match="backend"):
         SafetyFilter(__import__("asvtwin.vessel", fromlist=["x"]).cybership2(),

@@ -5,7 +5,7 @@ acados comes from the PyPI package ``comma-deps-acados`` (its shared libraries, 
 C code is generated and compiled with gcc once per problem (:meth:`OcpSpec.key`) into the
 cache directory and loaded from there afterwards: never rebuilt in a loop.
 
-Pitfalls handled here (REFERENCE §2): the environment variables acados needs are set from
+Pitfalls handled here (met with comma-deps-acados 0.2.2 and acados 0.2): the environment variables acados needs are set from
 the ``acados`` module's paths; its libraries (which have no RPATH) are preloaded with
 ``RTLD_GLOBAL``; one-sided constraints get moderate finite upper bounds, never 1e9; the
 QP status is checked by us, since RTI reports success whatever the QP did; and, because
@@ -46,7 +46,8 @@ __all__ = ["AcadosBackend", "acados_available"]
 
 log = logging.getLogger(__name__)
 
-#: Finite upper bound of the one-sided obstacle constraints [m] (never 1e9: REFERENCE §2).
+#: Finite upper bound of the one-sided obstacle constraints [m] (with ±1e9 as "no bound" every QP hit
+#: its iteration limit while SQP-RTI still reported success).
 _H_UPPER = 1e5
 
 

@@ -5,7 +5,7 @@ Always available (casadi is a core dependency). The NLP is built once per
 (u_L and the stage parameters), and warm-starts the primal (and for IPOPT the dual)
 variables from the caller's shifted guess. With ``codegen=True`` the NLP's functions are
 generated as C, compiled once with gcc into the cache directory and loaded from there on
-every later build (REFERENCE §2: a few seconds the first time, milliseconds after).
+every later build (a few seconds the first time, milliseconds after).
 
 Decision vector, stage by stage: ``[x_0, u_0, x_1, s_1, u_1, ..., x_N, s_N]`` with slacks
 ``s_k = [s_obstacles, s_velocity (3), (s_ellipsoid at N)]``.

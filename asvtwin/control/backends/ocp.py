@@ -14,8 +14,8 @@ The OCP of the paper's "Predictive Safety Filter" section,
     \\quad (g)\\; \\nu_N^\\top P_f \\nu_N \\le 1 + s,
 
 is described here by stage functions a backend assembles: the discrete dynamics ``F``
-(classic RK4 of the vessel model, |·| smoothed as sqrt(z² + 1e-6) as REFERENCE §2
-requires), the soft path constraints ``h(x, p) >= 0`` and the terminal constraints
+(classic RK4 of the vessel model, |·| smoothed as sqrt(z² + 1e-6): with the plain
+absolute value IPOPT hit its iteration limit near zero speed), the soft path constraints ``h(x, p) >= 0`` and the terminal constraints
 ``h_N(x, p) >= 0``. Every soft constraint has an L1-penalised slack (weight ``rho``); the
 inputs are hard.
 
@@ -50,7 +50,7 @@ __all__ = [
     "terminal_constraints",
 ]
 
-#: ε of the smoothed absolute value sqrt(z² + ε) in the damping (REFERENCE §2).
+#: ε of the smoothed absolute value sqrt(z² + ε) in the damping.
 SMOOTH_ABS_EPS = 1e-6
 #: Unused obstacle slots sit this many ship lengths away from the own ship.
 DUMMY_DISTANCE_FACTOR = 200.0
@@ -156,7 +156,7 @@ def continuous_dynamics(p: VesselParams) -> ca.Function:
     Minv = np.linalg.inv(M)
     M23 = 0.5 * (M[1, 2] + M[2, 1])
     au, av, ar = _sabs(su), _sabs(sv), _sabs(sr)
-    # D(ν) entries, REFERENCE §1
+    # D(ν) entries of CyberShip II (Skjetne et al. 2004; Fossen 2011, ch. 6-7)
     d11 = -p.X_u - p.X_uu * au - p.X_uuu * su * su
     d22 = -p.Y_v - p.Y_vv * av - p.Y_rv * ar
     d23 = -p.Y_r - p.Y_vr * av - p.Y_rr * ar
