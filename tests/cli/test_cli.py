@@ -67,3 +67,20 @@ def test_sim_in_the_fjord_reports_clearance_and_grounding(tmp_path, capsys):
         (tmp_path / "cybership2_full_scale_thrust_step.csv").open()))
     assert float(rows[-1]["psi_deg"]) == pytest.approx(120.0)
     assert float(rows[-1]["y_m"]) > 0 > float(rows[-1]["x_m"])  # heading south-east
+
+
+def test_sim_json_has_metrics_notes_and_imo_criteria(tmp_path, capsys):
+    import json
+    import math
+
+    assert main(["sim", "--vessel", "cybership2", "--manoeuvre", "zigzag",
+                 "--surge-fraction", "1", "--no-plot", "--json", "--out", str(tmp_path)]) == 0
+    out = json.loads(capsys.readouterr().out)  # stdout is exactly one JSON object
+    assert out["vessel"] == "cybership2" and out["length_m"] == 1.255
+    assert out["metrics"]["swing_checked"] == 0.0
+    assert out["metrics"]["first_overshoot_deg"] is None  # NaN is null, with a reason
+    assert "course-unstable" in out["notes"]["first_overshoot_deg"]
+    crit = {c["name"]: c for c in out["criteria"]}
+    assert crit["first overshoot, 10°/10° zig-zag"]["passed"] is False
+    assert math.isclose(crit["initial turning (run to 10° heading change)"]["limit"], 2.5)
+    assert out["files"] == [str(tmp_path / "cybership2_zigzag.csv")]
