@@ -307,7 +307,7 @@ class TargetSpec(_Model):
         default="A", description="AIS transponder class; None: the vessel sends no AIS"
     )
     vessel_type: VesselType = Field(default="cargo", description="type of ship")
-    length_m: float = Field(default=50.0, ge=3.0, le=400.0, description="length overall [m]")
+    length_m: float = Field(default=50.0, ge=1.0, le=400.0, description="length overall [m]")
     beam_m: float = Field(default=10.0, gt=0.0, le=70.0, description="beam [m]")
     start: Position | None = Field(
         default=None, description="start position (not used by ais_replay, required otherwise)"
