@@ -207,7 +207,8 @@ def _listen(args: argparse.Namespace) -> int:
                 continue
             t = source.pipeline.stream_time_unix_s  # every timed line counts, in scene or not
             if t is not None:
-                t_start = t if t_start is None else t_start
+                if t_start is None:  # the log's first time, if the source knows it
+                    t_start = getattr(getattr(source, "pacer", None), "first", None) or t
                 if t - t_start >= args.duration:
                     return
 

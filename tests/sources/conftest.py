@@ -36,3 +36,30 @@ def line(r: AisReport, station: str = "2573555", channel: str = "A") -> str:
 @pytest.fixture
 def pipeline() -> AisPipeline:
     return AisPipeline(default_scene())
+
+
+def xor(text: str) -> int:
+    """NMEA checksum of a text (XOR of its bytes)."""
+    cs = 0
+    for ch in text.encode("ascii"):
+        cs ^= ch
+    return cs
+
+
+def national_group(sentences: list[str], t: float, group_id: int = 9999) -> list[str]:
+    """The lines of one multi-sentence message as the national feed writes them: a group tag
+    block ``\\g:n-m-id,c:time*hh\\`` whose checksum covers only the ``c:`` field."""
+    m = len(sentences)
+    c = f"c:{int(t)}"
+    return [f"\\g:{n}-{m}-{group_id},{c}*{xor(c):02X}\\{s}" for n, s in enumerate(sentences, 1)]
+
+
+def tagged(sentence: str, t: float, station: str = "2573555") -> str:
+    """A sentence behind a standard tag block (checksum over the whole tag)."""
+    body = f"s:{station},c:{int(t)}"
+    return f"\\{body}*{xor(body):02X}\\{sentence}"
+
+
+def with_checksum(sentence_without_star: str) -> str:
+    """``!AIVDM,...`` plus its correct ``*hh`` (for corrupt payloads that must pass it)."""
+    return f"{sentence_without_star}*{xor(sentence_without_star[1:]):02X}"

@@ -17,6 +17,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
+import os
 import socket
 import struct
 from collections.abc import AsyncIterator, Callable
@@ -27,7 +28,7 @@ from asvtwin.errors import ParameterError, SourceError
 from asvtwin.sources.ais.counters import ErrorKind
 from asvtwin.sources.ais.pipeline import AisPipeline
 from asvtwin.sources.ais.reports import ReportBatch
-from asvtwin.sources.ais.source import PipelineSource
+from asvtwin.sources.ais.source import PipelineSource, SourceStatus
 
 __all__ = ["Backoff", "TcpAisSource", "UdpAisSource"]
 
@@ -198,7 +199,8 @@ class UdpAisSource(PipelineSource):
     Nothing is lost silently. The socket's receive buffer is enlarged (``rcvbuf_bytes``, as
     far as the kernel allows: :attr:`rcvbuf_bytes_granted`); datagrams the kernel still drops
     because the buffer was full are counted as ``kernel_drop`` from the drop counter Linux
-    attaches to each datagram (``SO_RXQ_OVFL``); datagrams a slow consumer leaves in a full
+    attaches to each datagram (``SO_RXQ_OVFL``) and from ``/proc/net/udp`` (which also
+    tells the drops after the last datagram received); datagrams a slow consumer leaves in a full
     queue are counted as ``queue_overflow``. The socket is read by the event loop's reader
     callback, so a consumer that blocks the loop makes the kernel drop (and count).
 
@@ -236,6 +238,7 @@ class UdpAisSource(PipelineSource):
         self.bound_port: int | None = None
         self.datagrams = 0  #: datagrams received from the kernel
         self._kernel_drops = 0
+        self._inode: str | None = None
         self.ready = asyncio.Event()
 
     def _open(self) -> socket.socket:
@@ -272,22 +275,48 @@ class UdpAisSource(PipelineSource):
             self.datagrams += 1
             for level, kind, cdata in anc:
                 if level == socket.SOL_SOCKET and kind == SO_RXQ_OVFL and len(cdata) >= 4:
-                    total = struct.unpack("=I", cdata[:4])[0]
-                    if total > self._kernel_drops:
-                        count(ErrorKind.KERNEL_DROP, f"udp:{self.bound_port}",
-                              "the socket's receive buffer was full (consumer too slow or "
-                              f"burst; buffer {self.rcvbuf_bytes_granted} bytes)",
-                              n=total - self._kernel_drops)
-                        self._kernel_drops = total
+                    self._count_drops(struct.unpack("=I", cdata[:4])[0])
             try:
                 queue.put_nowait(data)
             except asyncio.QueueFull:
                 count(ErrorKind.QUEUE_OVERFLOW, data[:80], "consumer too slow")
 
+    def _count_drops(self, total: int) -> None:
+        """Count the kernel's cumulative drop counter's increase as ``kernel_drop``."""
+        if total > self._kernel_drops:
+            self.pipeline.counters.count(
+                ErrorKind.KERNEL_DROP, f"udp:{self.bound_port}",
+                "the socket's receive buffer was full (consumer too slow, or a burst; buffer "
+                f"{self.rcvbuf_bytes_granted} bytes)", n=total - self._kernel_drops)
+            self._kernel_drops = total
+
+    def _sync_drops(self) -> None:
+        """Read the socket's drop counter from /proc/net/udp (Linux): the per-datagram
+        counter only arrives with the next datagram, this one also after the last."""
+        if self._inode is None:
+            return
+        for table in ("/proc/net/udp", "/proc/net/udp6"):
+            try:
+                with open(table, encoding="ascii") as fh:
+                    next(fh)
+                    for row in fh:
+                        f = row.split()
+                        if len(f) >= 13 and f[9] == self._inode:
+                            self._count_drops(int(f[12]))
+                            return
+            except (OSError, ValueError, StopIteration):
+                continue
+
+    def status(self) -> SourceStatus:
+        """Current health and counts (kernel drops brought up to date first)."""
+        self._sync_drops()
+        return super().status()
+
     async def batches(self) -> AsyncIterator[ReportBatch]:
         loop = asyncio.get_running_loop()
         queue: asyncio.Queue[bytes] = asyncio.Queue(self.queue_size)
         sock = self._open()
+        self._inode = str(os.fstat(sock.fileno()).st_ino)
         self.bound_port = int(sock.getsockname()[1])
         loop.add_reader(sock.fileno(), self._read_all, sock, queue)
         self._connected = True
@@ -297,14 +326,19 @@ class UdpAisSource(PipelineSource):
                 try:
                     data = await asyncio.wait_for(queue.get(), self.silence_timeout_s)
                 except TimeoutError:
+                    self._sync_drops()
                     self.pipeline.counters.count(ErrorKind.SILENT_FEED, f"udp:{self.bound_port}",
                                                  f"no datagram for {self.silence_timeout_s} s")
                     continue
+                if queue.empty():
+                    self._sync_drops()
                 self._last_data = self._now()
                 batch = self.pipeline.feed_batch(data.split(b"\n"), recv_time_s=self._last_data)
                 if len(batch) or batch.static:
                     yield batch
         finally:
+            self._sync_drops()
             self._connected = False
+            self._inode = None
             loop.remove_reader(sock.fileno())
             sock.close()

@@ -82,18 +82,18 @@ def _positive_or_none(value: object) -> int | None:
 
 
 def _resync(raw: bytes) -> int:
-    """Where a sentence (``\\``, ``!`` or ``$``) starts after a garbage prefix, or -1.
-
-    Only the part after the last non-ASCII byte is searched (it must be clean ASCII)."""
+    """Where a sentence starts after a garbage prefix, or -1: the first ``\\`` or ``!`` (AIS
+    lines start so), else the first ``$``. Only the part after the last non-ASCII byte is
+    searched (the sentence must be clean ASCII)."""
     start = 0
     if not raw.isascii():
         start = max(i for i, b in enumerate(raw) if b > 127) + 1
-    found = [k for k in (raw.find(c, start) for c in (b"\\", b"!", b"$")) if k >= 0]
+    found = [k for k in (raw.find(b"\\", start), raw.find(b"!", start)) if k >= 0]
     if not found:
-        return -1
+        return raw.find(b"$", start)
     k = min(found)
     # a backslash right before "!" closes a tag block the garbage cut: keep the sentence
-    return k + 1 if raw[k] == 92 and raw[k + 1:k + 2] in (b"!", b"$") else k
+    return k + 1 if raw[k] == 92 and raw[k + 1:k + 2] == b"!" else k
 
 
 @dataclass
@@ -214,6 +214,11 @@ class AisPipeline:
                              stream_time_unix_s=self.stream_time_unix_s,
                              clock_lag_s=self._clock_lag_s,
                              pending_fragments=len(self.fragments))
+
+    @property
+    def dedup_window_s(self) -> float:
+        """Identical payloads closer than this are one transmission heard twice [s]."""
+        return self._dedup_s
 
     @property
     def latest_time_unix_s(self) -> float | None:

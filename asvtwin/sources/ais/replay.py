@@ -110,7 +110,8 @@ class FileReplaySource(PipelineSource):
                         end = max(pacer.last, self.pipeline.latest_time_unix_s or -math.inf)
                         span = end - pacer.first
                     self.span_s = span
-                offset += span + self.loop_gap_s
+                # ... and beyond the duplicate window: a short log's lines are not copies
+                offset += max(span + self.loop_gap_s, self.pipeline.dedup_window_s + 1.0)
                 await yield_control()
         finally:
             self._connected = False
