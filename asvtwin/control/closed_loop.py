@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.control.obstacles import CircleObstacles, CoastSegments, MovingObstacles
 from asvtwin.control.psf import FilterResult, SafetyFilter
 from asvtwin.vessel.params import VesselParams
@@ -28,7 +28,6 @@ __all__ = [
     "run_closed_loop",
 ]
 
-_F8 = NDArray[np.float64]
 SCENARIO_KINDS = ("obstacle", "coast", "crossing")
 
 

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from asvtwin.checks import check_positive
 from asvtwin.environment.forces import (
     WindCoefficients,
     current_force,
@@ -68,10 +69,7 @@ def gauss_markov_step(b: ArrayLike, dt_s: float, T_s: float, sigma: float,
 
 
 def _positive(name: str, v: float, lo_open: bool = True) -> None:
-    ok = (v > 0) if lo_open else (v >= 0)
-    if not (math.isfinite(v) and ok):
-        raise ConfigError(f"environment: {name} must be {'>' if lo_open else '>='} 0, "
-                          f"actually: {v}")
+    check_positive(v, name, allow_zero=not lo_open, where="environment", error=ConfigError)
 
 
 @dataclass(frozen=True, slots=True)

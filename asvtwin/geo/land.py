@@ -35,11 +35,11 @@ from numpy.typing import ArrayLike, NDArray
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
 
 __all__ = ["LandMask"]
 
-_F8 = NDArray[np.float64]
 
 
 @njit(cache=True)

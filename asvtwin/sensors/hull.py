@@ -15,13 +15,13 @@ can cast every ray against every hull edge in one kernel.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
 
 __all__ = ["HULL_SHAPES", "hull_polygons", "hull_segments", "target_poses"]
 
-_F8 = NDArray[np.float64]
 
 #: Hull shapes understood by :func:`hull_polygons`.
 HULL_SHAPES = ("pointed", "ellipse")

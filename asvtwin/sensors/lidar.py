@@ -24,13 +24,13 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
 from asvtwin.geo.land import LandMask
 from asvtwin.sensors.hull import HULL_SHAPES, hull_polygons, hull_segments, target_poses
 
 __all__ = ["HIT_COAST", "HIT_NONE", "Lidar", "LidarConfig", "LidarScan"]
 
-_F8 = NDArray[np.float64]
 
 #: ``LidarScan.hit_id`` of a ray that returned nothing.
 HIT_NONE = -1

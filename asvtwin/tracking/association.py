@@ -25,11 +25,11 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 from scipy.stats import chi2
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
 
 __all__ = ["FORBIDDEN", "gate_threshold", "gated_costs", "gnn_assign"]
 
-_F8 = NDArray[np.float64]
 
 #: Cost of a pair outside the gate.
 FORBIDDEN = 1.0e12

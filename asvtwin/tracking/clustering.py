@@ -27,13 +27,13 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
 from asvtwin.geo.land import LandMask
 from asvtwin.sensors.lidar import LidarScan
 
 __all__ = ["ClusterConfig", "Clusters", "cluster_points", "cluster_scan"]
 
-_F8 = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

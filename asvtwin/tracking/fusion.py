@@ -41,13 +41,13 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
 from asvtwin.tracking.kalman import H_FULL, H_POSITION
 from asvtwin.tracking.smallmat import inv_into
 
 __all__ = ["FUSION_METHODS", "fuse_covariance_intersection", "fuse_gain_weighted", "fuse_product"]
 
-_F8 = NDArray[np.float64]
 
 #: Fusion methods understood by the tracker.
 FUSION_METHODS = ("product", "gain_weighted", "covariance_intersection")

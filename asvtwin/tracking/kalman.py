@@ -31,8 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
 from asvtwin.tracking.smallmat import inv_into
 
@@ -46,7 +47,6 @@ __all__ = [
     "kalman_update",
 ]
 
-_F8 = NDArray[np.float64]
 
 #: Measurement matrix of a position fix (LiDAR centre, AIS position), shape (2, 4).
 H_POSITION = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])

@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 from scipy.stats import chi2
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
 
 __all__ = [
@@ -38,7 +39,6 @@ __all__ = [
     "track_breaks",
 ]
 
-_F8 = NDArray[np.float64]
 
 
 def rmse(estimates: ArrayLike, truths: ArrayLike) -> float:

@@ -26,13 +26,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
 from asvtwin.tracking.kalman import cv_process_noise, cv_transition
 from asvtwin.tracking.snapshot import TrackSnapshot
 
 __all__ = ["SafetyPrediction", "TrackPrediction", "predict_tracks", "predictions_for_safety", "uncertainty_polygon"]
 
-_F8 = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -9,9 +9,10 @@ from types import MappingProxyType
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from asvtwin.checks import F8 as _F8
+
 __all__ = ["TRACK_STATUS", "TrackSnapshot"]
 
-_F8 = NDArray[np.float64]
 
 #: Track statuses: tentative (not yet M of N), confirmed (updated this tick), coasting
 #: (confirmed, predicted only this tick).

@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
+from asvtwin.checks import check_positive, check_range
 from asvtwin.errors import ParameterError
 from asvtwin.vessel.model import coriolis, damping
 from asvtwin.vessel.params import VesselParams
@@ -185,17 +186,15 @@ def rk4_stable_step(params: VesselParams, nu: ArrayLike) -> float:
 
 
 def _check_fraction(name: str, value: float) -> None:
-    if not (math.isfinite(value) and 0.0 < value <= 1.0):
-        raise ParameterError(f"{name} must be a fraction in (0, 1] of the largest thrust "
-                             f"(the thruster saturates above 1), actually: {value}")
+    # above 1 the thruster saturates at the first step: the run would be mislabelled
+    check_range(value, f"{name} (of the largest thrust)", 0.0, 1.0, lo_open=True)
 
 
 def _time_step(params: VesselParams, dt_s: float | None, U: float) -> float:
     """``dt_s``, or the default; refused at or above the RK4 stability limit at speed U."""
     if dt_s is None:
         return _time_scale(params)
-    if not (math.isfinite(dt_s) and dt_s > 0.0):
-        raise ParameterError(f"dt_s must be finite and > 0 [s], actually: {dt_s}")
+    check_positive(dt_s, "dt_s [s]")
     limit = rk4_stable_step(params, [U, 0.0, 0.0])
     if dt_s >= limit:
         raise ParameterError(
@@ -374,9 +373,8 @@ def zigzag(params: VesselParams, *, switch_deg: float = 10.0, yaw_fraction: floa
     """
     _check_fraction("surge_fraction", surge_fraction)
     _check_fraction("yaw_fraction", yaw_fraction)
-    if not (math.isfinite(switch_deg) and 0.0 < switch_deg < 90.0):
-        raise ParameterError(f"switch_deg must be in (0, 90) [deg] (IMO uses 10 and 20), "
-                             f"actually: {switch_deg}")
+    check_range(switch_deg, "switch_deg (IMO uses 10 and 20)", 0.0, 90.0, lo_open=True,
+                hi_open=True, unit="deg")
     F, U0 = _approach(params, surge_fraction)
     N_max = yaw_fraction * params.actuators.tau_max[2]
     dt = _time_step(params, dt_s, U0)
@@ -452,8 +450,8 @@ def thrust_step(params: VesselParams, *, surge_fraction: float = 1.0,
     _check_fraction("surge_fraction", surge_fraction)
     F, U = _approach(params, surge_fraction)
     dt = _time_step(params, dt_s, U)
-    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0.0):
-        raise ParameterError(f"duration_s must be finite and > 0 [s], actually: {duration_s}")
+    if duration_s is not None:
+        check_positive(duration_s, "duration_s [s]")
     M11 = params.M[0, 0]
     # linearised time constant M11 / d11'(U) sets a sensible duration
     slope = -params.X_u - 2 * params.X_uu * U - 3 * params.X_uuu * U * U

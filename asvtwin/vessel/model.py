@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from asvtwin.errors import StateError
+from asvtwin.checks import check_rows
 from asvtwin.vessel.params import VesselParams
 
 __all__ = [
@@ -40,19 +40,8 @@ _FIELDS_INPUT = ("tau_u", "tau_v", "tau_r")
 def validate_array(a: ArrayLike, width: int, what: str,
                    fields: tuple[str, ...] | None = None) -> NDArray[np.float64]:
     """Return ``a`` as a float (n, width) array; raise StateError naming the vessel index
-    and field of the first NaN/inf, or the expected shape."""
-    arr = np.asarray(a, dtype=np.float64)
-    if arr.ndim == 1:
-        arr = arr[None, :]
-    if arr.ndim != 2 or arr.shape[1] != width:
-        raise StateError(f"{what} must have shape ({width},) or (n, {width}), actually: "
-                         f"{np.shape(a)}")
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        name = fields[j] if fields else str(j)
-        raise StateError(f"{what} of vessel {i} has non-finite {name}: {arr[i, j]}")
-    return arr
+    and field of the first NaN/inf, or the expected shape (:func:`asvtwin.checks.check_rows`)."""
+    return check_rows(a, width, what, fields)
 
 
 def rotation(psi: ArrayLike) -> NDArray[np.float64]:

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from asvtwin.checks import check_finite
 from asvtwin.errors import ParameterError
 
 __all__ = [
@@ -83,8 +84,7 @@ _DIMENSIONS: dict[str, tuple[int, int, int]] = {
 
 
 def _check_finite(name: str, value: float, source: str) -> None:
-    if not math.isfinite(value):
-        raise ParameterError(f"{source}: field {name!r} must be finite, actually: {value}")
+    check_finite(value, f"field {name!r}", where=source)
 
 
 @dataclass(frozen=True, slots=True)

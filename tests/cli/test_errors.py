@@ -40,7 +40,7 @@ CASES = [
     (["sim", "--yaw-fraction", "0"], "fraction in (0, 1]"),
     (["sim", "--surge-fraction", "nan"], "finite"),
     (["sim", "--manoeuvre", "zigzag", "--switch-deg", "0", "--out", "{dir}"],
-     "switch_deg must be in (0, 90)"),
+     "must be in (0, 90) [deg]"),
     (["sim", "--manoeuvre", "figure8"], "invalid choice"),
     (["sim", "--vessel", "titanic"], "invalid choice"),
     (["sim", "--scene", "{dir}/no_such_scene.yaml", "--out", "{dir}"], "no_such_scene"),

@@ -150,8 +150,8 @@ def test_rk4_stability_limit_from_the_model_jacobian(params):
 @pytest.mark.parametrize("call,phrase", [
     (lambda p: thrust_step(p, dt_s=100.0), "stability limit"),
     (lambda p: turning_circle(p, dt_s=100.0), "stability limit"),
-    (lambda p: thrust_step(p, surge_fraction=3.0), "fraction in (0, 1]"),
-    (lambda p: turning_circle(p, yaw_fraction=0.0), "fraction in (0, 1]"),
+    (lambda p: thrust_step(p, surge_fraction=3.0), "must be in (0, 1]"),
+    (lambda p: turning_circle(p, yaw_fraction=0.0), "must be in (0, 1]"),
     (lambda p: zigzag(p, switch_deg=0.0), "switch_deg"),
     (lambda p: zigzag(p, switch_deg=-10.0), "switch_deg"),
     (lambda p: thrust_step(p, duration_s=-5.0), "duration_s"),
