@@ -20,7 +20,19 @@ import argparse
 import math
 from pathlib import Path
 
-__all__ = ["fraction", "non_negative_float", "out_dir", "positive_float", "positive_int"]
+__all__ = [
+    "PSF_BACKENDS",
+    "fraction",
+    "non_negative_float",
+    "out_dir",
+    "positive_float",
+    "positive_int",
+]
+
+#: ``choices`` of every ``--psf-backend``/``--backend`` option: "auto" and the names of
+#: :data:`asvtwin.control.BACKENDS` (not imported here: the control package takes seconds
+#: to import, and ``--help`` must stay fast; a test keeps the two equal).
+PSF_BACKENDS = ("auto", "acados", "casadi-ipopt", "casadi-fatrop")
 
 
 def _number(text: str) -> float:

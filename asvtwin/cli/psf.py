@@ -13,7 +13,7 @@ import csv
 import logging
 from pathlib import Path
 
-from asvtwin.cli.argtypes import out_dir, positive_float
+from asvtwin.cli.argtypes import PSF_BACKENDS, out_dir, positive_float
 
 __all__ = ["register"]
 
@@ -31,7 +31,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="output directory (default: %(default)s)")
     d.add_argument("--seed", type=int, default=7, help="scenario seed (default 7)")
     d.add_argument("--backend", default="auto",
-                   choices=("auto", "acados", "casadi-ipopt", "casadi-fatrop"),
+                   choices=PSF_BACKENDS,
                    help="solver backend (default: %(default)s)")
     d.add_argument("--duration", type=positive_float, default=60.0,
                    help="simulated time [s], > 0")

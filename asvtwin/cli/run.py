@@ -17,7 +17,7 @@ import logging
 import sys
 from pathlib import Path
 
-from asvtwin.cli.argtypes import out_dir, positive_float, positive_int
+from asvtwin.cli.argtypes import PSF_BACKENDS, out_dir, positive_float, positive_int
 
 __all__ = ["register"]
 
@@ -51,9 +51,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-record", action="store_true", help="do not write run.mcap")
     p.add_argument("--port", type=positive_int, default=8765, metavar="P",
                    help="viewer port on 127.0.0.1 (default: %(default)s)")
-    p.add_argument("--psf-backend", default="auto", metavar="NAME",
-                   help="safety filter backend: auto, acados, casadi-ipopt, casadi-fatrop "
-                        "(default: %(default)s)")
+    p.add_argument("--psf-backend", default="auto", choices=PSF_BACKENDS,
+                   help="safety filter backend (default: %(default)s)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 

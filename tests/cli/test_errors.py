@@ -165,3 +165,37 @@ def test_help_has_no_rest_markup():
         text = parser.format_help()
         assert "``" not in text and ":func:" not in text and ":class:" not in text, \
             parser.prog
+
+
+def test_psf_backend_choices_match_the_control_package():
+    from asvtwin.cli.argtypes import PSF_BACKENDS
+    from asvtwin.control import BACKENDS
+
+    assert PSF_BACKENDS == ("auto", *BACKENDS)
+
+
+def _every_option():
+    def walk(parser):
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for sub in action.choices.values():
+                    yield from walk(sub)
+            elif action.option_strings:
+                yield parser.prog, action
+
+    return list(walk(build_parser()))
+
+
+def test_every_backend_option_of_every_command_has_choices():
+    missing = [f"{prog} {a.option_strings[0]}" for prog, a in _every_option()
+               if "backend" in a.option_strings[-1] and not a.choices]
+    assert missing == []
+
+
+def test_every_out_default_of_every_command_is_under_out():
+    """One convention: files go to out/<command> unless --out says otherwise (a None
+    default means "write nothing" or "stdout" and is allowed)."""
+    wrong = [f"{prog} --out default {a.default}" for prog, a in _every_option()
+             if "--out" in a.option_strings and a.default is not None
+             and Path(str(a.default)).parts[:1] != ("out",)]
+    assert wrong == []
