@@ -9,12 +9,18 @@ go; elsewhere (a log, CI) one line at the start and one at the end.
 
 Importing numba costs most of a second, so the listener is installed only once numba is
 imported by the command itself (an import hook waits for ``numba.core.event``).
+
+Other first-run builds (the acados solver's C code) announce themselves through the logger
+``asvtwin.build`` (:data:`BUILD_LOGGER`): library code logs one INFO record before a long
+build, ``logging.getLogger("asvtwin.build").info("compiling the acados solver, first run
+only")``, and the notice prints it and keeps the seconds counting, whatever ``-v`` says.
 """
 
 from __future__ import annotations
 
 import importlib.abc
 import importlib.util
+import logging
 import sys
 import threading
 import time
@@ -22,7 +28,10 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import IO, Any
 
-__all__ = ["CompileProgress", "compile_notice"]
+__all__ = ["BUILD_LOGGER", "CompileProgress", "compile_notice"]
+
+#: Logger through which library code announces a long first-run build.
+BUILD_LOGGER = "asvtwin.build"
 
 
 class CompileProgress:
@@ -32,6 +41,7 @@ class CompileProgress:
         self.stream = stream if stream is not None else sys.stderr
         self.interval_s = interval_s
         self.compiled = 0
+        self.builds: list[str] = []
         self.current = ""
         self.t0: float | None = None
         self._depth = 0
@@ -47,13 +57,23 @@ class CompileProgress:
             self._depth = max(0, self._depth - 1)
             self.compiled += 1
 
+    def build(self, message: str) -> None:
+        """A library build announced on :data:`BUILD_LOGGER`: say it, keep counting."""
+        self._begin()
+        self._write(f"asvtwin: {message}\n")
+        self.builds.append(message)
+        self.current = message
+
     def _start(self, event: Any) -> None:
         self._depth += 1
         dispatcher = (event.data or {}).get("dispatcher")
         self.current = getattr(getattr(dispatcher, "py_func", None), "__name__", "")
+        self._begin()
+
+    def _begin(self) -> None:
         if self.t0 is None:
             self.t0 = time.monotonic()
-            self._write("asvtwin: compiling kernels, first run only (numba caches them; "
+            self._write("asvtwin: compiling kernels, first run only (they are cached; "
                         "this takes 30-70 s once)\n")
             if self._tty:
                 self._ticker = threading.Thread(target=self._tick, daemon=True)
@@ -80,8 +100,11 @@ class CompileProgress:
             self._write("\r\x1b[K")
         if self.t0 is not None:
             n = self.compiled
-            self._write(f"asvtwin: compiled {n} kernel{'' if n == 1 else 's'} in "
-                        f"{self.elapsed_s:.0f} s; later runs load them from the cache\n")
+            what = f"{n} kernel{'' if n == 1 else 's'}"
+            if self.builds:
+                what += f" and {len(self.builds)} solver build{'' if len(self.builds) == 1 else 's'}"
+            self._write(f"asvtwin: compiled {what} in {self.elapsed_s:.0f} s; later runs load "
+                        "them from the cache\n")
 
     def _write(self, text: str) -> None:
         try:
@@ -145,6 +168,15 @@ def compile_notice(stream: IO[str] | None = None) -> Iterator[CompileProgress]:
         event.register("numba:compile", listener)
         installed.append(listener)
 
+    class _BuildHandler(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            progress.build(record.getMessage())
+
+    build_logger = logging.getLogger(BUILD_LOGGER)
+    handler = _BuildHandler(logging.INFO)
+    build_logger.addHandler(handler)
+    old_level = build_logger.level
+    build_logger.setLevel(logging.INFO)
     hook = None
     if "numba.core.event" in sys.modules:
         install()
@@ -154,6 +186,8 @@ def compile_notice(stream: IO[str] | None = None) -> Iterator[CompileProgress]:
     try:
         yield progress
     finally:
+        build_logger.removeHandler(handler)
+        build_logger.setLevel(old_level)
         if hook is not None and hook in sys.meta_path:
             sys.meta_path.remove(hook)
         if installed:

@@ -58,3 +58,19 @@ def test_the_listener_waits_for_numba_to_be_imported():
     assert proc.returncode == 0, proc.stderr
     assert "compiling kernels, first run only" in proc.stdout
     assert "compiled 1 kernel in" in proc.stdout
+
+
+def test_a_library_build_announced_on_the_build_logger_is_shown():
+    import logging
+
+    from asvtwin.cli.progress import BUILD_LOGGER
+
+    stream = io.StringIO()
+    with compile_notice(stream) as progress:
+        logging.getLogger(BUILD_LOGGER).info("compiling the acados solver, first run only")
+    text = stream.getvalue()
+    assert text.splitlines()[0].startswith("asvtwin: compiling kernels, first run only")
+    assert "asvtwin: compiling the acados solver, first run only" in text
+    assert progress.builds and "compiled 0 kernels and 1 solver build in" in text
+    # outside the block the logger is quiet again (default WARNING level)
+    assert logging.getLogger(BUILD_LOGGER).level == logging.NOTSET
