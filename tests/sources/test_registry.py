@@ -16,6 +16,7 @@ from asvtwin.sources.ais import (
     default_fleet,
     nominal_report_interval_s,
 )
+from asvtwin.units import KNOT_M_S
 from asvtwin.vessel import BatchSimulator
 
 from .conftest import T0, line, report
@@ -166,3 +167,80 @@ def test_report_becomes_the_trackers_measurement() -> None:
     assert (m.north_m, m.east_m) == (r.north_m, r.east_m)
     na = AisMeasurement.from_report(report(sog_m_s=None, cog_deg=None), epoch_unix_s=T0)
     assert math.isnan(na.sog_m_s) and math.isnan(na.cog_rad)  # "not available" as NaN
+
+
+# ----------------------------------------------------------------------------- issue items 13-15
+def test_staleness_follows_the_reporting_interval_without_a_floor() -> None:
+    """Before: a 30 s floor kept a 25-kn ship (reporting every 2 s) fresh for 30 s; a class B
+    without COG counted as stopped (3 min interval) and went stale only after 540 s."""
+    reg = TargetRegistry(epoch_unix_s=T0)
+    reg.update(report(mmsi=1, t=T0, sog_m_s=25 * KNOT_M_S))  # class A at 25 kn: 2 s
+    reg.update(report(mmsi=2, t=T0, sog_m_s=10 * KNOT_M_S, cog_deg=None, msg_type=18))
+    at = {t: dict(zip(s.mmsi.tolist(), s.stale.tolist()))
+          for t in (5.9, 6.1, 89.0, 91.0) for s in [reg.extrapolate(t, evict=False)]}
+    assert at[5.9][1] is False and at[6.1][1] is True  # 3 x 2 s
+    assert at[89.0][2] is False and at[91.0][2] is True  # 3 x 30 s, SOG kept without COG
+    snap = reg.extrapolate(10.0)
+    i = snap.mmsi.tolist().index(2)
+    assert snap.sog_m_s[i] == pytest.approx(10 * KNOT_M_S) and np.isnan(snap.cog_rad[i])
+    assert not snap.velocity_known[i]  # no course: not moved, but its speed is known
+
+
+def test_dead_reckoning_is_geodetic_at_the_edge_of_the_scene() -> None:
+    """Before: dead reckoning in the origin's tangent plane was 41 m off after 600 s at the
+    scene's edge. Oracle: pymap3d's rhumb line (loxodrome) on WGS84, projected exactly."""
+    from pymap3d.lox import loxodrome_direct
+
+    from asvtwin.geo import default_scene
+    from asvtwin.sources.ais import AisPipeline, encode_report
+
+
+
+    frame = default_scene().frame
+    p = AisPipeline()
+    reg = TargetRegistry(epoch_unix_s=T0)
+    starts = [(63.43, 10.74, 0.0), (63.62, 9.86, 90.0), (63.66, 10.70, 225.0)]
+    for k, (lat, lon, cog) in enumerate(starts):
+        reg.update_batch(p.feed(line(report(mmsi=10 + k, t=T0, lat=lat, lon=lon, sog_m_s=10.0,
+                                            cog_deg=cog, rot_rad_s=None))))
+    assert p.stats.reports == 3
+    snap = reg.extrapolate(600.0)
+    for k, (lat, lon, cog) in enumerate(starts):
+        r = p.feed(encode_report(report(lat=lat, lon=lon)), recv_time_s=T0)  # AIS resolution
+        lat_q, lon_q = float(r.lat_deg[0]), float(r.lon_deg[0])
+        sog_q = round(10.0 / KNOT_M_S, 1) * KNOT_M_S
+        lat2, lon2 = loxodrome_direct(lat_q, lon_q, sog_q * 600.0, cog)
+        truth = np.array(frame.to_ned(lat2, lon2), dtype=float)
+        i = snap.mmsi.tolist().index(10 + k)
+        assert np.linalg.norm(snap.position_m[i] - truth) < 0.05
+        assert (snap.lat_deg[i], snap.lon_deg[i]) == pytest.approx((lat2, lon2), abs=1e-7)
+        # the velocity in the scene's axes is turned by the meridian convergence: east of
+        # the origin, a ship's north leans west (towards the pole on the origin's meridian)
+        chi_frame = math.atan2(snap.velocity_m_s[i, 1], snap.velocity_m_s[i, 0])
+        gamma = -math.radians(lon2 - frame.lon0_deg) * math.sin(math.radians(lat2))
+        assert chi_frame == pytest.approx(math.radians(cog) + gamma - 2 * math.pi * (cog > 180),
+                                          abs=2e-4)
+
+
+def test_not_available_is_explicit_in_the_snapshot_and_the_table() -> None:
+    """Before: COG 72.4 at SOG 0 showed as 0.0 (from the velocity vector), a known SOG was
+    hidden when COG was missing, an unavailable heading showed as 0.0 or as the COG."""
+    from rich.console import Console
+
+    from asvtwin.cli.ais import _table
+
+    reg = TargetRegistry(epoch_unix_s=T0)
+    reg.update(report(mmsi=1, t=T0, sog_m_s=0.0, cog_deg=72.4, heading_deg=None))
+    reg.update(report(mmsi=2, t=T0, sog_m_s=3.0, cog_deg=None, heading_deg=None))
+    reg.update(report(mmsi=3, t=T0, sog_m_s=None, cog_deg=None, heading_deg=100.0))
+    snap = reg.extrapolate(1.0)
+    assert math.degrees(snap.cog_rad[0]) == pytest.approx(72.4)
+    assert np.isnan(snap.true_heading_rad[:2]).all() and np.isnan(snap.sog_m_s[2])
+    assert math.degrees(snap.true_heading_rad[2]) == pytest.approx(100.0)
+    console = Console(width=200, record=True)
+    console.print(_table(snap, "t", 10))
+    rows = {ln.split("│")[1].strip(): [c.strip() for c in ln.split("│")[1:-1]]
+            for ln in console.export_text().splitlines() if "│" in ln and "MMSI" not in ln}
+    assert rows["1"][5:8] == ["0.0", "72.4", "-"]  # SOG, COG, HDG
+    assert rows["2"][5:8] == ["5.8", "-", "-"]
+    assert rows["3"][5:8] == ["-", "-", "100.0"]

@@ -332,6 +332,9 @@ class MetNoClient:
                 if len(raw) > self.max_body_bytes:
                     raise _Failure("too_large", f"response body larger than "
                                    f"{self.max_body_bytes} bytes from {self.url}")
+            if expired.is_set():  # the watchdog cut the socket: whatever came is partial
+                raise _Failure("deadline", f"no complete answer within "
+                               f"{self.total_timeout_s:g} s from {self.url}")
             declared = hdrs.get("Content-Length")
             if declared is not None and declared.isdigit() and int(declared) != len(raw):
                 raise _Failure("incomplete", f"body cut short: {len(raw)} of {declared} bytes")
