@@ -107,9 +107,9 @@ def _add_verbose_everywhere(parser: argparse.ArgumentParser) -> None:
             if id(sub) in seen:  # aliases share one parser
                 continue
             seen.add(id(sub))
-            if "-v" not in sub._option_string_actions:
-                sub.add_argument("-v", "--verbose", action="count",
-                                 default=argparse.SUPPRESS,
+            free = [s for s in ("-v", "--verbose") if s not in sub._option_string_actions]
+            if len(free) == 2:  # a command's own -v or --verbose wins
+                sub.add_argument(*free, action="count", default=argparse.SUPPRESS,
                                  help="more log output (-v info, -vv debug)")
             sub.set_defaults(_command=sub.prog.removeprefix("asvtwin").strip())
             _add_verbose_everywhere(sub)
