@@ -55,6 +55,7 @@ __all__ = [
     "geometry_problems",
     "library_names",
     "library_path",
+    "load_any",
     "load_library",
     "load_scenario",
     "parse_scenario",
@@ -493,6 +494,26 @@ def library_path(name: str) -> Path:
 def load_library(name: str, *, check_scene: bool = True) -> Scenario:
     """Load a library scenario by name (see :func:`library_names`)."""
     return load_scenario(library_path(name), check_scene=check_scene)
+
+
+def load_any(ref: str | os.PathLike[str], *, check_scene: bool = True) -> Scenario:
+    """A scenario file if ``ref`` is an existing path, else a library scenario by name.
+
+    Raises
+    ------
+    ScenarioError
+        Neither a file nor a library name (the message lists the library), or invalid.
+    """
+    p = Path(ref)
+    if p.exists():
+        return load_scenario(p, check_scene=check_scene)
+    name = str(ref)
+    if name in library_names():
+        return load_library(name, check_scene=check_scene)
+    raise ScenarioError(
+        f"{name}: no such scenario file, nor a library scenario; library: "
+        f"{', '.join(library_names())}"
+    )
 
 
 def default_scenario() -> Scenario:
