@@ -157,8 +157,8 @@ class Recording:
             return
         with open(self.path, "rb") as f:
             r = SeekingReader(f)
-            for _, _, msg in r.iter_messages(topics=[topic], start_time=start_ns,
-                                             end_time=None if end_ns is None else end_ns + 1):
+            for _, _, msg in r.iter_messages(topics=[topic], starting_at=start_ns,
+                                             ending_at=end_ns):
                 yield self._t(msg.log_time), bytes(msg.data)
 
     def message_at(self, t_s: float, *, topic: str = SNAPSHOT_TOPIC) -> bytes:

@@ -127,12 +127,15 @@ class Twin:
     inputs : RecordedInputs, optional
         Raw inputs of a recording to replay instead of the live sources (see
         :meth:`from_recording`).
+    ais_evict_after_s : float
+        An AIS target not heard for this long leaves the twin's picture [s] (it is shown
+        stale after three reporting intervals, at least 30 s).
     """
 
     def __init__(self, scenario: Scenario, *, seed: int | None = None, clock: Clock | None = None,
                  record_path: str | Path | Any | None = None, psf_backend: str = "auto",
                  record_max_bytes: int | None = None, record_chunk_bytes: int = 1 << 20,
-                 inputs: RecordedInputs | None = None) -> None:
+                 inputs: RecordedInputs | None = None, ais_evict_after_s: float = 300.0) -> None:
         self.scenario = scenario
         self.seed = int(scenario.seed if seed is None else seed)
         self.clock = clock or Clock("max", start_time_utc=scenario.start_time_utc)
@@ -164,7 +167,8 @@ class Twin:
             raise ScenarioError("ais.mode 'live' is not run by the twin's runtime yet; "
                                 "record the feed with 'asvtwin ais record' and use mode 'file'")
         self.ais_feed_alive = self.ais_mode in ("synthetic", "file")
-        self.ais = AisInput(self.scene, epoch_unix_s=self.epoch_unix_s)
+        self.ais = AisInput(self.scene, epoch_unix_s=self.epoch_unix_s,
+                            evict_after_s=ais_evict_after_s)
         # ---- the twin's own components
         s = scenario.sensors
         self.lidar = Lidar(LidarConfig(n_rays=s.lidar_rays, max_range_m=s.lidar_range_m,
@@ -218,7 +222,7 @@ class Twin:
             own_beam_m=self.params.beam,
             land=self.scene.land, near_coast_m=max(4.0 * self.params.length, 50.0),
             gate_m=max(2.0 * self.params.length, 10.0),
-            observer_settle_s=3.0 * max(self.estimator.observer.gains.convergence_90_s))
+            observer_settle_s=max(self.estimator.observer.gains.convergence_90_s))
         # ---- recorder
         self.recorder: Recorder | None = None
         if record_path is not None:
@@ -481,7 +485,8 @@ class Twin:
         if est.nan_inputs > before:
             self.scheduler.note("observer", "velocity measurements were NaN; d̂ held "
                                 "(see observer invalid_samples)")
-        self.metrics.observer(t, est.d_hat, self.world.d_true, est.valid)
+        if self.scheduler.stats("observer").calls > 0:  # the first sample only anchors ν
+            self.metrics.observer(t, est.d_hat, self.world.d_true, est.valid)
         for e in est.events[len(self._fault_seen):]:
             self._events.append(e)
         self._fault_seen = list(est.events)
@@ -642,6 +647,10 @@ class Twin:
                 not any(d.startswith("recorder") for d in deg):
             deg.append(f"recorder degraded: {self.recorder.error}")
         deg.extend(self._events_early)
+        errs = self.ais.errors()
+        if sum(errs.values()):
+            deg.append(f"ais input: {sum(errs.values())} malformed or rejected NMEA lines/"
+                       f"reports dropped ({', '.join(f'{k} {v}' for k, v in sorted(errs.items()))})")
         st = getattr(self.controller, "status", None)
         ticks = self.tick
         sim_s = ticks * self.dt_s

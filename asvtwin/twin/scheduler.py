@@ -172,6 +172,7 @@ class Scheduler:
             if c.overruns_in_row >= self.backoff_after and c.stretch < 8:
                 c.stretch *= 2
                 c.overruns_in_row = 0
+                c.next_t_s = t_s + c.period_s * c.stretch
                 self.note(name, f"overran its {c.budget_ms:.0f} ms budget "
                                 f"{self.backoff_after} times in a row; period stretched "
                                 f"to {c.period_s * c.stretch:g} s")

@@ -57,7 +57,7 @@ def verify_recording(path: str | os.PathLike[str], **twin_kwargs: Any) -> dict[s
         fresh[round(snap.t_s, 6)] = data
 
     twin.on_snapshot = keep
-    twin.run(rec.duration_s + 0.5 * twin.dt_s)
+    twin.run(rec.duration_s + twin.dt_s)
     compared = 0
     for t in sorted(recorded):
         if t not in fresh:

@@ -1,0 +1,95 @@
+"""Simulated transponders: ITU-R M.1371 intervals, and lines pyais itself decodes to the truth."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from pyais import decode
+
+from asvtwin.geo import default_scene
+from asvtwin.twin.transponders import Transponders
+from asvtwin.units import KNOT_M_S
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return default_scene()
+
+
+def _run(scene, speeds_kn, classes, duration_s=400.0, dt=0.5):
+    n = len(speeds_kn)
+    tr = Transponders([257000001 + i for i in range(n)], classes, [f"V{i}" for i in range(n)],
+                      [70] * n, [80.0] * n, [14.0] * n, frame=scene.frame,
+                      epoch_unix_s=1_732_100_400.0, rng=np.random.default_rng(4))
+    x = np.zeros((n, 6))
+    x[:, 0] = 3000.0 + 100 * np.arange(n)
+    x[:, 1] = -1500.0
+    x[:, 2] = math.radians(30.0)
+    x[:, 3] = np.asarray(speeds_kn) * KNOT_M_S
+    times: dict[int, list[float]] = {257000001 + i: [] for i in range(n)}
+    lines_all = []
+    for k in range(int(duration_s / dt)):
+        t = k * dt
+        for line in tr.step(t, x):
+            lines_all.append((t, x.copy(), line))
+    for t, _, line in lines_all:
+        body = line.split("\\")[-1]
+        if body.split(",")[1] == "1":  # single-fragment sentences: dynamic reports
+            msg = decode(body)
+            if msg.msg_type in (1, 3, 18):
+                times[msg.mmsi].append(t)
+    return times, lines_all
+
+
+def test_reporting_intervals_follow_itu_r_m1371(scene):
+    times, _ = _run(scene, [10.0, 18.0, 25.0, 10.0], ["A", "A", "A", "B"])
+    gaps = {m: set(np.round(np.diff(ts), 6)) for m, ts in times.items()}
+    assert gaps[257000001] == {10.0}   # class A, 0-14 kn: 10 s
+    assert gaps[257000002] == {6.0}    # class A, 14-23 kn: 6 s
+    assert gaps[257000003] == {2.0}    # class A, > 23 kn: 2 s
+    assert gaps[257000004] == {30.0}   # class B ("CS"), > 2 kn: 30 s
+
+
+def test_lines_decode_to_the_truth_with_pyais(scene):
+    _, lines = _run(scene, [10.0, 7.0], ["A", "B"], duration_s=200.0)
+    checked = statics = 0
+    frags: dict[int, list[str]] = {}
+    for _, x, line in lines:
+        tag, body = line[1:].split("\\", 1)
+        assert tag.startswith("s:2579999,c:1732100") and "*" in tag
+        parts = body.split(",")
+        if parts[1] != "1":  # a two-fragment type 5
+            frags.setdefault(int(parts[3] or 0), []).append(body)
+            if len(frags[int(parts[3] or 0)]) == 2:
+                m = decode(*frags.pop(int(parts[3] or 0)))
+                assert m.msg_type == 5 and m.shipname == "V0" and m.to_bow + m.to_stern == 80
+                statics += 1
+            continue
+        m = decode(body)
+        if m.msg_type == 24:
+            statics += 1
+            continue
+        i = m.mmsi - 257000001
+        north, east = scene.frame.to_ned(m.lat, m.lon)
+        # AIS positions are 1/10000 minute: ~0.19 m of latitude
+        assert abs(float(north) - x[i, 0]) < 0.5 and abs(float(east) - x[i, 1]) < 0.5
+        assert m.speed == pytest.approx(x[i, 3] / KNOT_M_S, abs=0.051)
+        assert m.course == pytest.approx(30.0, abs=0.051)
+        assert m.heading == 30
+        checked += 1
+    assert checked >= 25 and statics >= 2
+
+
+def test_a_vessel_without_ais_and_a_dead_feed_send_nothing(scene):
+    tr = Transponders([None, 257000009], [None, "A"], ["X", "Y"], [30, 30], [20.0, 20.0],
+                      [5.0, 5.0], frame=scene.frame, epoch_unix_s=0.0,
+                      rng=np.random.default_rng(1))
+    x = np.zeros((2, 6))
+    x[:, 0] = 3000.0
+    sent = [decode(line.split("\\")[-1]).mmsi for k in range(60) for line in tr.step(k, x)
+            if line.split("\\")[-1].split(",")[1] == "1"]
+    assert set(sent) == {257000009}
+    tr.alive = False
+    assert all(tr.step(60.0 + k, x) == [] for k in range(60))
