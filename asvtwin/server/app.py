@@ -377,12 +377,13 @@ def create_app(feed: Any, *, token: str | None = None, send_timeout_s: float = 2
     return guarded
 
 
-def _make_server(feed: Any, host: str, port: int, token: str | None, log_level: str) -> Any:
+def _make_server(feed: Any, host: str, port: int, token: str | None, log_level: str,
+                 send_timeout_s: float = 2.0) -> Any:
     import uvicorn
 
     if not _loopback(host) and not token:
         token = secrets.token_urlsafe(18)
-    app = create_app(feed, token=token)
+    app = create_app(feed, token=token, send_timeout_s=send_timeout_s)
     config = uvicorn.Config(app, host=host, port=port, log_level=log_level, lifespan="on",
                             ws_max_size=MAX_BODY_BYTES, ws_per_message_deflate=False,
                             proxy_headers=False, server_header=False)
@@ -432,8 +433,9 @@ class ServerThread:
     """
 
     def __init__(self, feed: Any, *, host: str = "127.0.0.1", port: int = 0,
-                 token: str | None = None, log_level: str = "error") -> None:
-        self.server = _make_server(feed, host, port, token, log_level)
+                 token: str | None = None, log_level: str = "error",
+                 send_timeout_s: float = 2.0) -> None:
+        self.server = _make_server(feed, host, port, token, log_level, send_timeout_s)
         self.app = self.server.asvtwin_app
         self.hub: Hub = self.app.hub
         self.feed: SnapshotFeed = self.app.fastapi.state.feed
