@@ -30,8 +30,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--family", choices=("static", "moving", "mixed"), default="moving")
     p.add_argument("--resume", action="store_true", help="resume each run's checkpoint")
     p.add_argument("--quick", action="store_true",
-                   help="a short real study: 3 setups x 1 seed x 3072 steps, 2 envs, "
-                        "2 held-out scenarios per family (about a minute)")
+                   help="a short real study: 3 setups x 1 seed x 512 steps, 2 envs, "
+                        "200-step episodes, 1 held-out scenario per family")
     p.set_defaults(func=_study)
 
 
@@ -44,9 +44,9 @@ def _study(args: argparse.Namespace) -> int:
     ppo = PpoConfig()
     steps, seeds, n_eval, every = args.steps, args.seeds, args.eval_episodes, 50_000
     if args.quick:
-        env = EnvConfig(family=args.family, max_steps=400, psf_horizon=40)
-        ppo = PpoConfig(n_envs=2, n_steps=256, batch_size=128, n_epochs=2)
-        steps, seeds, n_eval, every = 1024, args.seeds[:1], 2, 512
+        env = EnvConfig(family=args.family, max_steps=200, psf_horizon=40)
+        ppo = PpoConfig(n_envs=2, n_steps=128, batch_size=128, n_epochs=1)
+        steps, seeds, n_eval, every = 512, args.seeds[:1], 1, 256
     if steps < 1:
         raise ConfigError(f"--steps must be >= 1, actually: {steps}")
 

@@ -9,7 +9,9 @@ gym-auv; used with CyberShip II by Vaaler et al. 2023):
   and displaced sideways by N(0, 100²) m, at least 100 m from the start and the goal;
 - ``"moving"``: 5 such circles and 5 moving circles (radius half a width ~ Poisson(15) m)
   on straight lines at 0.06–2 m/s (mean about 0.54 m/s), each aimed to cross the path
-  at a random point about when the own ship gets there (else they rarely meet it).
+  at a random point between half and twice the time the own ship, at 80 % of its top
+  speed, needs to get there (else they rarely meet it; always on time, they made
+  following the path at speed a sure collision).
 
 Every draw comes from the ``Generator`` passed in.
 """
@@ -114,7 +116,7 @@ def random_scenario(rng: np.random.Generator, family: str, *, length_m: float = 
         for i in range(N_MOVING):
             s_meet = rng.uniform(0.2, 0.9) * total
             p, _ = _at(path, s_cum, s_meet)
-            t_meet = s_meet / (0.8 * U_max) * rng.uniform(0.8, 1.2)
+            t_meet = s_meet / (0.8 * U_max) * rng.uniform(0.5, 2.0)
             speed = float(np.clip(0.06 + rng.exponential(0.48), 0.06, 2.0))
             course = rng.uniform(-np.pi, np.pi)
             v = speed * np.array([np.cos(course), np.sin(course)])

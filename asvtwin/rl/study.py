@@ -164,8 +164,7 @@ def _write_outputs(out: Path, results: list[dict[str, Any]]) -> None:
         w = csv.writer(fh)
         w.writerow(keys)
         for r in rows:
-            w.writerow([int(r[k]) if isinstance(r[k], bool) else
-                        (round(r[k], 4) if isinstance(r[k], float) else r[k]) for k in keys])
+            w.writerow([_cell(k, r[k]) for k in keys])
     with open(out / "collisions.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["setup", "seed", "steps", "episodes", "collisions",
@@ -188,6 +187,16 @@ def _write_outputs(out: Path, results: list[dict[str, Any]]) -> None:
             w.writerows(evals)
     fig = plot_training(rows)
     fig.savefig(out / "training.png", dpi=110)
+
+
+_INTS = {"seed", "global_step", "length", "interventions", "fallbacks", "filter_calls",
+         "nan_actions"}
+
+
+def _cell(key: str, v: Any) -> Any:
+    if isinstance(v, bool) or key in _INTS:
+        return int(v)
+    return round(v, 4) if isinstance(v, float) else v
 
 
 def _rolling(x: np.ndarray, n: int = 100) -> np.ndarray:

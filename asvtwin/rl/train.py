@@ -210,7 +210,7 @@ def train(setup: str, *, steps: int, seed: int, out_dir: str | Path,
 
     venv = _make_vec_env(world, on_episode)
     policy_kwargs = {"net_arch": {"pi": list(ppo.net_arch), "vf": list(ppo.net_arch)},
-                     "activation_fn": torch.nn.Tanh}
+                     "activation_fn": torch.nn.Tanh, "log_std_init": ppo.log_std_init}
     if resume and latest.exists():
         try:
             model = sb3.PPO.load(latest, env=venv, device="cpu")

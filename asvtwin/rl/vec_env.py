@@ -143,7 +143,8 @@ class VecPathEnv:
             self.filters = [SafetyFilter(self.params, config=pc) for _ in range(n)]
             f0 = self.filters[0]
             # the farthest the ship gets over the horizon plus the clearance it needs
-            self._reach_m = (1.05 * self.U_max * pc.N * pc.dt_s + f0.d_safe_m + f0.d_f_m)
+            self._reach_m = (1.05 * self.U_max * f0.config.N * f0.config.dt_s + f0.d_safe_m
+                            + f0.d_f_m)
         self.reset_all()
 
     # ------------------------------------------------------------------------- reset

@@ -167,4 +167,5 @@ def test_filter_culling_is_exact_beyond_reach() -> None:
         obs = CircleObstacles(centres=[[reach + 8.0 + 0.5, 0.0]], radii=[8.0])
         res = f.filter(x, u_L, obs, t_s=0.0)
         assert res.fallback == "none"
-        np.testing.assert_allclose(res.u0, u_L, atol=0.01 * np.array([2, 1, 0.3]))
+        # within 1 % of each input's range (the filter's own tie-break ε)
+        assert (np.abs(res.u0 - u_L) <= 0.01 * np.array([2, 1, 0.3])).all(), (res.u0, u_L)
