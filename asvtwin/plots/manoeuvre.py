@@ -53,9 +53,8 @@ def manoeuvre_figure(result: ManoeuvreResult, *, length_m: float | None = None,
         Ship length [m]; sets the heading arrows and the coast margin (default: from the
         track's extent).
     scene : Scene, optional
-        Draw the coast around the track, with twice its extent (at least 5 ship lengths
-        and 400 m) of
-        margin so the manoeuvre can be placed.
+        Draw the coast around the track, with three times its extent (at least 8 ship
+        lengths and 600 m) of margin so the manoeuvre can be placed.
     """
     x, t, tau = result.x, result.t_s, result.tau
     span = float(np.ptp(x[:, :2], axis=0).max()) or 1.0
@@ -64,13 +63,15 @@ def manoeuvre_figure(result: ManoeuvreResult, *, length_m: float | None = None,
     gs = fig.add_gridspec(4, 3, width_ratios=[1.2, 1.0, 0.75])
     ax = fig.add_subplot(gs[:, 0])
     ax.plot(x[:, 1], x[:, 0], "-", color="tab:blue", lw=1.5, label="track")
-    k = np.arange(0, len(x), max(1, len(x) // 16))
+    # heading arrows: 12 along the run, at most a ship length and 1/10 of the track long
+    k = np.arange(0, len(x), max(1, len(x) // 12))
+    arrow = min(L, span / 10.0) if span > 0 else L
     ax.quiver(x[k, 1], x[k, 0], np.sin(x[k, 2]), np.cos(x[k, 2]), color="tab:blue",
-              angles="xy", scale_units="xy", scale=1.0 / max(L, span / 15.0),
-              width=0.004, label="heading")
+              angles="xy", scale_units="xy", scale=1.0 / arrow, width=0.004,
+              label="heading")
     ax.plot(x[0, 1], x[0, 0], "o", color="k", label="start")
     if scene is not None:
-        pad = max(2.0 * span, 5.0 * L, 400.0)
+        pad = max(3.0 * span, 8.0 * L, 600.0)
         draw_coast(ax, scene.land, (x[:, 0].min() - pad, x[:, 1].min() - pad,
                                     x[:, 0].max() + pad, x[:, 1].max() + pad))
     else:
