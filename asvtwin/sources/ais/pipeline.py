@@ -391,7 +391,9 @@ class AisPipeline:
                       f"payload character {bad!r} is outside the AIS 6-bit alphabet")
                 continue
             if t is not None:
-                if t > frags.deadline:  # the fragment timeout, on every line
+                # the fragment timeout, on every line whose time is not a lie (a line dated
+                # hours ahead must not expire other stations' messages)
+                if t > frags.deadline and (ref is None or t <= ref + lead):
                     frags.expire(t)
                 if T_MIN_UNIX_S <= t <= T_MAX_UNIX_S:  # robust stream time (all lines)
                     recent.append(t)
