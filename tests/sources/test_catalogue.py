@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from collections import Counter
 from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 import pytest
@@ -67,6 +68,10 @@ def _payload_swap(t: float, k: int, ch: str, *, fix_checksum: bool) -> list[str]
     bad = f"{head},{payload[:10]}{ch}{payload[11:]},{fill}"
     s = _cs(bad) if fix_checksum else bad + _sentence(t, k)[-3:]
     return [_tag(t) + s]
+
+
+def _swap_fixed(ch: str, t: float, k: int) -> list[str]:
+    return _payload_swap(t, k, ch, fix_checksum=True)
 
 
 def _dict_sentence(t: float, k: int, **fields: object) -> str:
@@ -157,8 +162,7 @@ CATALOGUE: list[tuple[str, E, Gen]] = [
     ("missing_fields", {"malformed": 1}, lambda t, k: [_tag(t) + _cs("!AIVDM,1,1,A")]),
     ("payload_too_long", {"malformed": 1}, lambda t, k: [_tag(t) + _cs("!AIVDM,1,1,,A," + "1" * 400 + ",0")]),
     # ---------------------------------------------------------------- payload
-    *[(f"armour_{name}", {"decode_error": 1},
-       (lambda c: lambda t, k: _payload_swap(t, k, c, fix_checksum=True))(ch))
+    *[(f"armour_{name}", {"decode_error": 1}, partial(_swap_fixed, ch))
       for name, ch in (("X", "X"), ("Z", "Z"), ("bracket", "["), ("backslash_like", "^"),
                        ("underscore", "_"), ("x", "x"), ("brace", "{"), ("pipe", "|"),
                        ("tilde", "~"), ("space", " "), ("bang", "!"), ("quote", '"'),
@@ -275,5 +279,5 @@ def test_all_of_them_mixed_in_change_nothing_valid_and_no_batch_size_matters(bas
 
 
 def default_mmsis(lines: list[str]) -> set[int]:
-    p, rows, _ = _run(lines, 512)
+    _, rows, _ = _run(lines, 512)
     return {int(r[0]) for r in rows if not math.isnan(float(r[1]))}  # type: ignore[arg-type]
