@@ -1,4 +1,4 @@
-"""Closed loop of the safety filter fed by the disturbance observer (issue 6, item 3).
+"""Closed loop of the safety filter fed by the disturbance observer.
 
 The own ship (CyberShip II by default) is pushed by a steady ocean current; a naive
 controller ``u_L`` (full thrust straight ahead) drives it, and the predictive safety
@@ -32,6 +32,7 @@ from asvtwin.control.obstacles import CircleObstacles, CoastSegments
 from asvtwin.control.psf import FilterResult, SafetyFilter
 from asvtwin.environment import current_force
 from asvtwin.errors import ParameterError
+from asvtwin.guidance import AutopilotGains, HeadingSpeedAutopilot
 from asvtwin.observer.disturbance import DisturbanceObserver, ObserverGains
 from asvtwin.observer.runs import SensorNoise
 from asvtwin.vessel import BatchSimulator, VesselParams
@@ -251,13 +252,13 @@ def run_with_current(params: VesselParams, case: CurrentScenario, psf: SafetyFil
 def naive_autopilot(params: VesselParams, x: _F8, psi_ref: float) -> _F8:
     """The naive controller u_L: full surge thrust, heading held on ``psi_ref``.
 
-    Heading PD τ_r = m_r(ω²e_ψ − 2ω r) with m_r = M[2, 2], ω = 0.8 rad/s (the
-    autopilot of :mod:`asvtwin.observer.runs` at model scale), saturated to the rudder's
-    range; it ignores every hazard, so only the filter keeps the ship clear.
+    Heading: the project's :class:`~asvtwin.guidance.HeadingSpeedAutopilot` as the critically
+    damped PD τ_r = m_r(ω²e_ψ − 2ω r), m_r = M[2, 2], ω = 0.8 rad/s ÷ √λ (the heading
+    loop of :mod:`asvtwin.observer.runs`), saturated to the rudder's range; it ignores
+    every hazard, so only the filter keeps the ship clear.
     """
-    act = params.actuators
-    m_r = float(params.M[2, 2])
     w = 0.8 / math.sqrt(params.length / 1.255)
-    e = math.remainder(psi_ref - float(x[2]), 2.0 * math.pi)
-    tau_r = m_r * (w * w * e - 2.0 * w * float(x[5]))
-    return np.array([act.tau_max[0], 0.0, min(max(tau_r, act.tau_min[2]), act.tau_max[2])])
+    ap = HeadingSpeedAutopilot(params, AutopilotGains.critically_damped(params, w))
+    tau = ap.tau(x, psi_ref, 0.0)
+    tau[0] = params.actuators.tau_max[0]  # full ahead, whatever the speed
+    return tau

@@ -32,9 +32,9 @@ from asvtwin.environment import (
     wind_force,
 )
 from asvtwin.errors import ParameterError
+from asvtwin.guidance import AutopilotGains, HeadingSpeedAutopilot
 from asvtwin.units import wrap_angle
 from asvtwin.vessel import BatchSimulator, VesselParams
-from asvtwin.vessel.model import damping
 
 __all__ = [
     "InjectedFault",
@@ -196,15 +196,13 @@ def simulate(params: VesselParams, n_runs: int, duration_s: float, *, seed: int,
     if environment == "default":
         environment = default_environment(params)
     env = None if environment is None else _EnvBatch(params, environment, r, rng)  # type: ignore[arg-type]
-    M = params.M
-    act = params.actuators
     u_ref = speed_fraction * 0.57 * f
-    nu_ref = np.array([[u_ref, 0.0, 0.0]])
-    tau_ff = (damping(params, nu_ref)[0] @ nu_ref[0])[0]
-    # autopilot: surge PI (closed-loop time constant 5 s·√λ), heading PID (ω_n 0.8/√λ)
-    Tu, wn, r_max = 5.0 * f, WN_HEADING / f, TURN_RATE / f
-    kp_u, ki_u = M[0, 0] / Tu, M[0, 0] / Tu**2 / 4.0
-    kp_p, kd_p, ki_p = M[2, 2] * wn**2, 2 * 1.0 * wn * M[2, 2], M[2, 2] * wn**3 / 10.0
+    # the project's autopilot: surge feed-forward + PI (closed-loop time constant 5 s·√λ),
+    # heading PID (critically damped, ω_n 0.8/√λ, integral m_r ω³/10), on measured ν
+    r_max = TURN_RATE / f
+    autopilot = HeadingSpeedAutopilot(params, AutopilotGains.critically_damped(
+        params, WN_HEADING / f, integral=True, speed_time_constant_s=5.0 * f), dt_s=h)
+    tau_ff = float(autopilot.surge_feedforward(u_ref)[0])
     psi0 = rng.uniform(-math.pi, math.pi, r)
     x0 = np.zeros((r, 6))
     x0[:, 2] = psi0
@@ -215,8 +213,6 @@ def simulate(params: VesselParams, n_runs: int, duration_s: float, *, seed: int,
     psi_ref = psi0.copy()
     psi_target = psi0.copy()
     next_turn = rng.uniform(0.25, 1.0, r) * TURN_EVERY_S * f
-    iu = np.zeros(r)
-    ip = np.zeros(r)
     sig = np.zeros(3) if noise is None else np.asarray(noise.sigma_nu)
     out_x = np.empty((T, r, 6))
     out_nm = np.empty((T, r, 3))
@@ -249,14 +245,8 @@ def simulate(params: VesselParams, n_runs: int, duration_s: float, *, seed: int,
             # the reference turns towards the target at most r_max
             psi_ref = np.asarray(wrap_angle(psi_ref + np.clip(wrap_angle(psi_target - psi_ref),
                                                    -r_max * h, r_max * h)))
-        e_u = u_ref - nm[:, 0]
-        e_p = wrap_angle(psi_ref - x[:, 2])
-        cmd = np.zeros((r, 3))
-        cmd[:, 0] = tau_ff + kp_u * e_u + ki_u * iu
-        cmd[:, 2] = kp_p * e_p - kd_p * nm[:, 2] + ki_p * ip
-        # anti-windup: integrate only while the command is inside the actuator range
-        iu += h * e_u * ((cmd[:, 0] > act.tau_min[0]) & (cmd[:, 0] < act.tau_max[0]))
-        ip += h * e_p * ((cmd[:, 2] > act.tau_min[2]) & (cmd[:, 2] < act.tau_max[2]))
+        # true heading, measured ν (conditional-integration anti-windup inside)
+        cmd = autopilot.tau(np.column_stack([x[:, :3], nm]), psi_ref, u_ref)
         d = np.zeros((r, 3))
         if env is not None:
             d += env.forces(x)
