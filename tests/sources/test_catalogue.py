@@ -281,3 +281,28 @@ def test_all_of_them_mixed_in_change_nothing_valid_and_no_batch_size_matters(bas
 def default_mmsis(lines: list[str]) -> set[int]:
     _, rows, _ = _run(lines, 512)
     return {int(r[0]) for r in rows if not math.isnan(float(r[1]))}  # type: ignore[arg-type]
+
+
+def test_the_example_lines_of_the_docs_table_are_counted_as_documented() -> None:
+    """docs/sources.md lists every rejection reason with an example line: each example that
+    stands alone (no stream around it) is fed to a pipeline and must give its reason."""
+    from pathlib import Path
+
+    doc = (Path(__file__).parents[2] / "docs" / "sources.md").read_text(encoding="utf-8")
+    table = doc.split("### Rejection reasons")[1].split("\n\n")[2]
+    checked = 0
+    for row in table.splitlines()[2:]:
+        cells = [c.strip() for c in row.strip("|").split(" | ")]
+        reason = cells[0].strip("`")
+        example = cells[2]
+        code = example.split("`` ")[1].split(" ``")[0] if example.startswith("``") \
+            else example.split("`")[1] if example.startswith("`") else None
+        if code is None or not code.startswith(("\\", "!", "hello")) or " then " in example \
+                or " in a stream" in example:
+            continue
+        p = AisPipeline()
+        p.feed(code)
+        p.finish()
+        assert dict(p.stats.errors) == {reason: 1}, (reason, code, p.stats.errors)
+        checked += 1
+    assert checked >= 18
