@@ -45,7 +45,8 @@ CLOCK_MODES = ("max", "realtime", "scaled")
 
 
 def parse_speed(value: float | str) -> float | str:
-    """``"max"``, or a speed factor > 0 (``"10"``, ``"x10"``, ``10.0``) as a float.
+    """``"max"``, or a speed factor > 0 (``"10"``, ``"x10"``, ``10.0``; ``"realtime"`` is 1)
+    as a float.
 
     Raises
     ------
@@ -56,6 +57,8 @@ def parse_speed(value: float | str) -> float | str:
         v = value.strip().lower()
         if v in ("max", "inf", "fast"):
             return "max"
+        if v in ("realtime", "real-time", "real time"):
+            return 1.0
         v = v.removeprefix("x").removesuffix("x")
         try:
             value = float(v)

@@ -77,7 +77,7 @@ _F8 = NDArray[np.float64]
 TIMING_FIELDS = (("health",), ("filter", "solve_ms"), ("clock",))
 
 _COMPONENTS = ("ais", "weather", "lidar", "tracker", "observer", "controller", "filter",
-               "world", "scoring", "snapshot", "recorder")
+               "world", "scoring", "tracking_score", "snapshot", "recorder")
 
 
 def comparable(message: bytes | dict[str, Any]) -> dict[str, Any]:
@@ -156,7 +156,8 @@ class Twin:
         # ---- sources at the edge: weather first (the world's wind may come from it)
         self.weather, self.weather_source = self._open_weather()
         self.world = World(scenario, self.scene, self.params, dt_s=self.dt_s, rng=rng_env,
-                           weather_wind=self._wind_from_weather(0.0))
+                           weather_wind=self._wind_from_weather(0.0),
+                           pilot_period_s=1.0 / rates.controller_hz)
         t = self.world.table
         self.transponders = Transponders(
             t.mmsi, t.ais_class, t.names, t.ship_type, t.length_m, t.beam_m,
@@ -193,7 +194,8 @@ class Twin:
         periods = {"ais": 0.0, "weather": 60.0, "lidar": 1.0 / s.lidar_rate_hz,
                    "tracker": 1.0 / rates.tracker_hz, "observer": 1.0 / rates.observer_hz,
                    "controller": 1.0 / rates.controller_hz, "filter": 1.0 / rates.filter_hz,
-                   "world": 0.0, "scoring": 0.0, "snapshot": 1.0 / rates.snapshot_hz,
+                   "world": 0.0, "scoring": max(self.dt_s, 0.2), "tracking_score": 0.0,
+                   "snapshot": 1.0 / rates.snapshot_hz,
                    "recorder": 1.0 / rates.snapshot_hz}
         for name in _COMPONENTS:
             sch.add(name, periods[name])
@@ -432,7 +434,7 @@ class Twin:
         if sch.due("tracker", t):
             ok, _ = sch.call("tracker", t, self.perception.step, t, self._scan_new, self.ais.take())
             self._scan_new = None
-            sch.call("scoring", t, self.metrics.tracking, self.perception.tracks, truth)
+            sch.call("tracking_score", t, self.metrics.tracking, self.perception.tracks, truth)
         # 5. observer and fault detector
         if sch.due("observer", t):
             sch.call("observer", t, self._observer_step, t, own)
@@ -460,11 +462,12 @@ class Twin:
         if not ok:
             raise StateError(f"the world's simulation failed at t={t:.2f} s: "
                              f"{sch.stats('world').last_error}")
-        ok, ev = sch.call("scoring", t, self.metrics.truth, t, self.world.own_state,
-                          self.world.target_states, self.world.table.length_m,
-                          self.world.table.beam_m)
-        if ok and ev:
-            self._events.extend(ev)
+        if sch.due("scoring", t):
+            ok, ev = sch.call("scoring", t, self.metrics.truth, t + self.dt_s,
+                              self.world.own_state, self.world.target_states,
+                              self.world.table.length_m, self.world.table.beam_m)
+            if ok and ev:
+                self._events.extend(ev)
         st = getattr(self.controller, "status", None)
         if st is not None:
             self.metrics.cte(st.cte_m)

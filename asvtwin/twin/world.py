@@ -127,11 +127,15 @@ class World:
         Environment variations.
     weather_wind : (speed [m/s], from [rad]) or None
         Wind from the weather source, for a scenario that takes it from there.
+    pilot_period_s : float
+        The targets' autopilots run at this period [s] (their thrust is held between
+        runs, as a real autopilot's output is); 0: every step.
     """
 
     def __init__(self, scenario: Scenario, scene: Scene, own_params: VesselParams, *,
                  dt_s: float, rng: np.random.Generator,
-                 weather_wind: tuple[float, float] | None = None) -> None:
+                 weather_wind: tuple[float, float] | None = None,
+                 pilot_period_s: float = 0.0) -> None:
         self.scenario = scenario
         self.scene = scene
         self.dt_s = float(dt_s)
@@ -152,6 +156,9 @@ class World:
         self._x = np.zeros((0, 6))
         self.pilots = TargetPilots(scene.frame)
         self.targets: BatchSimulator | None = None
+        self.pilot_period_s = float(pilot_period_s)
+        self._pilot_next = 0.0
+        self._tau_t = np.zeros((0, 3))
         for spec in scenario.targets:
             self._add(spec)
         self._rebuild(self._x, np.zeros((len(self._params), 3)))
@@ -194,6 +201,7 @@ class World:
         self._x = x_old
         self._add(spec)
         self._rebuild(self._x, np.vstack([tau_old, np.zeros((1, 3))]))
+        self._pilot_next = self.t_s  # the new target gets its autopilot at once
         return len(self._params) - 1
 
     @property
@@ -225,8 +233,9 @@ class World:
         self.d_true = self.env.forces(self.own_params, x_own, self.env_state)[0]
         self.own.step(tau_own, self.d_true)
         if self.targets is not None:
-            xt = self.targets.state
-            tau_t = self.pilots.tau(self.t_s, xt, x_own)
-            self.targets.step(tau_t)
+            if self.t_s + 1e-9 >= self._pilot_next or self._tau_t.shape[0] != self.n_targets:
+                self._tau_t = self.pilots.tau(self.t_s, self.targets.state, x_own)
+                self._pilot_next = self.t_s + self.pilot_period_s
+            self.targets.step(self._tau_t)
         self.env_state = self.env.advance(self.env_state, self.dt_s, self.rng)
         self.t_s += self.dt_s

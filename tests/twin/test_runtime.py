@@ -17,7 +17,7 @@ from asvtwin.twin.verify import first_difference, verify_recording
 
 from .conftest import scenario
 
-COMPONENTS = {"ais", "weather", "lidar", "tracker", "observer", "controller", "filter",
+COMPONENTS = {"ais", "weather", "lidar", "tracker", "observer", "controller", "filter", "tracking_score",
               "world", "scoring", "snapshot", "recorder"}
 
 

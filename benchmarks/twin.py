@@ -1,0 +1,157 @@
+"""Benchmark of the whole twin, headless; prints one JSON object.
+
+The embedded default scenario (Trondheim Fjord, full-scale own ship under ``los_psf``,
+synthetic AIS through the NMEA decoder, weather fixture) plus ``--extra-targets`` (50)
+vessels placed at random on open water within 3 km of the own ship (seeded; a mix of
+class A, class B and no transponder; constant velocity or a two-leg route), every
+component on (AIS, LiDAR, tracker, observer and fault detector, controller, safety filter,
+snapshots) and recording on (MCAP in a temporary folder).
+
+- ``realtime_factor``: simulated seconds per wall second over ``--duration`` (120 s)
+  after a warm-up (``--warmup``, 20 s: numba compilation, the solver's cold start);
+- ``ms_per_tick``: wall time per tick of every component over the measured window, and
+  ``share``: each component's fraction of the tick (where the time goes);
+- ``snapshot_bytes``: median size of one encoded snapshot (and p95);
+- ``recording_mb_per_h``: MCAP bytes written per *simulated* hour (zstd chunks);
+- ``memory_growth_mb``: resident memory after ``--memory-s`` (3600: one simulated hour)
+  of further running minus before it, after the warm-up (goal: flat, < 10 MB). Pass
+  ``--memory-s 0`` to skip it.
+
+The machine is shared: run it alone for numbers that mean something.
+Run: ``python benchmarks/twin.py [--extra-targets 50] [--duration 120] [--memory-s 3600]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def _rss_mb() -> float:
+    """Current resident set size [MB] (Linux /proc; ru_maxrss elsewhere)."""
+    try:
+        with open("/proc/self/statm") as f:
+            pages = int(f.read().split()[1])
+        return pages * resource.getpagesize() / 2**20
+    except OSError:  # pragma: no cover - not Linux
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def extra_targets(scenario, n: int, seed: int):  # type: ignore[no-untyped-def]
+    """``n`` targets on open water within 3 km of the own ship (seeded)."""
+    from asvtwin.scenarios import TargetSpec, resolve_scene, top_speed_m_s
+    from asvtwin.units import KNOT_M_S
+
+    rng = np.random.default_rng(seed)
+    scene = resolve_scene(scenario)
+    p0 = scenario.own_ship.start.to_ned(scene.frame)
+    out = []
+    while len(out) < n:
+        p = p0 + rng.uniform(-3000.0, 3000.0, 2)
+        if scene.land.signed_distance(p[None])[0] < 300.0:
+            continue
+        k = len(out)
+        length = float(rng.uniform(15.0, 150.0))
+        top_kn = top_speed_m_s(length) / KNOT_M_S
+        cls = ("A", "B", None)[k % 3]
+        spec = {"name": f"EXTRA{k:02d}", "mmsi": 257_500_000 + k if cls else None,
+                "ais_class": cls, "vessel_type": "cargo", "length_m": round(length, 1),
+                "beam_m": round(length / 6.0, 1),
+                "start": {"north_m": float(p[0]), "east_m": float(p[1])},
+                "heading_deg": float(rng.uniform(0.0, 360.0)),
+                "speed_kn": round(float(min(rng.uniform(2.0, 8.0), 0.9 * top_kn)), 1)}
+        if k % 2:
+            d = rng.uniform(-800.0, 800.0, (2, 2))
+            wps = [p + d[0], p + d[0] + d[1]]
+            if (scene.land.signed_distance(np.asarray(wps)) < 200.0).any():
+                continue
+            spec["behaviour"] = {"kind": "waypoints", "loop": True, "route": [
+                {"north_m": float(w[0]), "east_m": float(w[1])} for w in wps]}
+        out.append(TargetSpec.model_validate(spec))
+    return out
+
+
+def main(argv: list[str] | None = None) -> dict[str, object]:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--extra-targets", type=int, default=50)
+    ap.add_argument("--duration", type=float, default=120.0, help="measured simulated s")
+    ap.add_argument("--warmup", type=float, default=20.0, help="simulated s not measured")
+    ap.add_argument("--memory-s", type=float, default=3600.0,
+                    help="simulated s of the memory run after the measurement (0: skip)")
+    ap.add_argument("--seed", type=int, default=7)
+    args = ap.parse_args(argv)
+
+    from asvtwin.scenarios import default_scenario
+    from asvtwin.twin import Twin
+
+    base = default_scenario()
+    targets = list(base.targets) + extra_targets(base, args.extra_targets, args.seed)
+    total = args.warmup + args.duration + args.memory_s
+    scenario = base.model_copy(update={"targets": targets, "duration_s": max(total, 1.0)})
+    scenario = type(base).model_validate(scenario.model_dump(mode="json"))
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "bench.mcap"
+        t_build = time.perf_counter()
+        twin = Twin(scenario, record_path=path)
+        build_s = time.perf_counter() - t_build
+        sizes: list[int] = []
+        twin.on_snapshot = lambda s, b: sizes.append(len(b))
+        n_warm = int(round(args.warmup / twin.dt_s))
+        for _ in range(n_warm):
+            twin.step()
+        sch = twin.scheduler
+        names = [h.name for h in sch.health()]
+        ms0 = {n: sch.stats(n).total_ms for n in names}
+        bytes0 = twin.recorder.bytes_written if twin.recorder else 0
+        sizes.clear()
+        n_meas = int(round(args.duration / twin.dt_s))
+        t0 = time.perf_counter()
+        for _ in range(n_meas):
+            twin.step()
+        wall = time.perf_counter() - t0
+        bytes1 = twin.recorder.bytes_written if twin.recorder else 0
+        ms = {n: (sch.stats(n).total_ms - ms0[n]) / n_meas for n in names}
+        tick_ms = 1e3 * wall / n_meas
+        mem = None
+        if args.memory_s > 0:
+            rss0 = _rss_mb()
+            for _ in range(int(round(args.memory_s / twin.dt_s))):
+                twin.step()
+            mem = _rss_mb() - rss0
+        twin.close()
+        summary = twin.summary()
+    sim_s = n_meas * twin.dt_s
+    sz = np.asarray(sizes) if sizes else np.zeros(1)
+    out: dict[str, object] = {
+        "realtime_factor": round(sim_s / wall, 2),
+        "targets": len(targets),
+        "sim_hz": scenario.rates.sim_hz,
+        "tick_ms": round(tick_ms, 3),
+        "ms_per_tick": {k: round(v, 4) for k, v in sorted(ms.items(), key=lambda kv: -kv[1])},
+        "share": {k: round(v / tick_ms, 3) for k, v in sorted(ms.items(), key=lambda kv: -kv[1])},
+        "snapshot_bytes": int(np.median(sz)),
+        "snapshot_bytes_p95": int(np.percentile(sz, 95)),
+        "recording_mb_per_h": round((bytes1 - bytes0) / 2**20 * 3600.0 / sim_s, 2),
+        "memory_growth_mb": None if mem is None else round(mem, 2),
+        "memory_run_s": args.memory_s,
+        "build_s": round(build_s, 2),
+        "filter_calls": summary.filter_calls,
+        "fallbacks": summary.fallbacks,
+        "collisions": summary.collisions,
+        "measured_sim_s": sim_s,
+        "load_average_1min": round(float(__import__("os").getloadavg()[0]), 2),
+    }
+    print(json.dumps(out))
+    return out
+
+
+if __name__ == "__main__":
+    sys.exit(0 if main() else 1)
