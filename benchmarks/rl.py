@@ -10,10 +10,11 @@
   steps divided by the process's wall time. Early in training the agent rarely gets near
   obstacles, so the filter is called less often than in a trained agent's episodes.
 
-Each figure is the median of ``--repeats`` runs. The machine is shared (2 cores, other
+The environment figures are medians of ``--repeats`` runs, the training figures of
+``--train-repeats`` (default 1: each is a whole training process). The machine is shared (2 cores, other
 jobs running): compare ratios measured in one run, not absolute numbers across runs.
 
-Usage: ``python benchmarks/rl.py [--train-steps 8192] [--repeats 3]``
+Usage: ``python benchmarks/rl.py [--train-steps 8192] [--repeats 3] [--train-repeats 1]``
 """
 
 from __future__ import annotations
@@ -74,15 +75,19 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--train-steps", type=int, default=8192)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--train-repeats", type=int, default=1)
     args = ap.parse_args()
-    med = lambda f, *a: float(np.median([f(*a) for _ in range(args.repeats)]))  # noqa: E731
+    med = lambda f, *a: float(np.median([f(*a) for _ in range(args.repeats)]))
+    tmed = lambda *a: float(np.median(
+        [_train_rate(*a) for _ in range(args.train_repeats)]))
     out = {
         "env_steps_per_s": round(med(_vec_rate, 64, 300)),
         "env_steps_per_s_single": round(med(_single_rate, 2000)),
-        "ppo_steps_per_s": round(med(_train_rate, "ppo", args.train_steps)),
-        "ppo_psf_steps_per_s": round(med(_train_rate, "ppo_psf_moving", args.train_steps)),
+        "ppo_steps_per_s": round(tmed("ppo", args.train_steps)),
+        "ppo_psf_steps_per_s": round(tmed("ppo_psf_moving", args.train_steps)),
         "train_steps": args.train_steps,
         "repeats": args.repeats,
+        "train_repeats": args.train_repeats,
         "goal_env_steps_per_s": 20000,
         "goal_ppo_psf_steps_per_s": 500,
         "load_avg_1min": round(os.getloadavg()[0], 2),

@@ -216,6 +216,9 @@ class PpoConfig:
     with std 1 in yaw only spins (progress 0.00–0.01 per 2000-step episode over the first
     50 k steps of our first run), while a linear heading feedback at 0.6 N follows the
     path (progress 0.99).
+    ``warm_start_steps``: batched steps (16 environments) of the line-of-sight expert
+    whose actions the policy's mean is cloned to before PPO starts
+    (:mod:`asvtwin.rl.warm_start`; 0 disables it): our choice, see there.
     """
 
     n_envs: int = 8
@@ -229,6 +232,7 @@ class PpoConfig:
     clip_range: float = 0.2
     net_arch: tuple[int, ...] = (128, 64)
     log_std_init: float = -1.0
+    warm_start_steps: int = 500
 
     def __post_init__(self) -> None:
         _check("PpoConfig", [
@@ -251,6 +255,9 @@ class PpoConfig:
              "> 0"),
             ("log_std_init", self.log_std_init,
              _finite(self.log_std_init) and -5 <= self.log_std_init <= 2, "in [-5, 2]"),
+            ("warm_start_steps", self.warm_start_steps,
+             isinstance(self.warm_start_steps, int) and self.warm_start_steps >= 0,
+             "an int >= 0"),
             ("net_arch", self.net_arch,
              len(self.net_arch) >= 1 and all(int(h) >= 1 for h in self.net_arch),
              "a non-empty tuple of layer widths >= 1"),

@@ -37,7 +37,7 @@ from asvtwin.vessel.params import VesselParams
 __all__ = ["DEFAULT_POLICY", "RlController", "default_policy_path"]
 
 #: File name of the policy shipped in ``asvtwin/rl/policies/``.
-DEFAULT_POLICY = "ppo_psf_moving.npz"
+DEFAULT_POLICY = "cybership2_path_colav.npz"
 
 
 def default_policy_path() -> Path:

@@ -55,7 +55,7 @@ class PathColavEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
     ``reset(options={"scenario": Scenario})`` plays a given scenario (held-out sets).
     """
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": []}  # noqa: RUF012 (Gymnasium declares it so)
 
     def __init__(self, config: EnvConfig | None = None, *, setup: str | None = None,
                  params: VesselParams | None = None) -> None:
@@ -105,12 +105,12 @@ class PathColavEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
 
             raise StateError("step() called on an ended episode: call reset() first")
         vec = self._vec
-        fallbacks_before = vec._acc["interventions"][0]
-        obs, r, term, trunc, records, final = vec.step(np.asarray(action)[None])
+        interventions_before = vec._acc["interventions"][0]
+        _obs, r, term, trunc, records, final = vec.step(np.asarray(action)[None])
         info: dict[str, Any] = {
             "cte_m": float(vec.feat[0, 1]),
             "progress": float(vec.feat[0, 4]),
-            "intervened": bool(vec._acc["interventions"][0] > fallbacks_before),
+            "intervened": bool(vec._acc["interventions"][0] > interventions_before),
         }
         rec = records[0]
         if rec is not None:

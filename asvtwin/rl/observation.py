@@ -16,7 +16,7 @@ is replaced by :data:`SAFE_ACTION` (no thrust, no moment: the vessel coasts and 
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["N_NAV", "R_REF", "SAFE_ACTION", "action_to_tau", "closeness", "nav_features",
            "ray_bearings"]
@@ -53,13 +53,13 @@ def nav_features(nu: _F8, look_err: _F8, head_err: _F8, eps: _F8, U_max: float) 
     return np.clip(out, -10.0, 10.0)
 
 
-def action_to_tau(a: NDArray[np.float64], tau_max: _F8) -> tuple[_F8, NDArray[np.bool_]]:
+def action_to_tau(a: ArrayLike, tau_max: _F8) -> tuple[_F8, NDArray[np.bool_]]:
     """Actions (n, 2) → commanded thrust u_L (n, 3) [N, N, Nm] and which were non-finite.
 
     Non-finite rows become :data:`SAFE_ACTION`; finite ones are clipped to [−1, 1].
     """
     a = np.asarray(a, dtype=np.float64).reshape(-1, 2)
-    bad = ~np.isfinite(a).all(axis=1)
+    bad: NDArray[np.bool_] = np.asarray(~np.isfinite(a).all(axis=1))
     a = np.where(bad[:, None], SAFE_ACTION, np.clip(np.nan_to_num(a), -1.0, 1.0))
     tau = np.zeros((a.shape[0], 3))
     tau[:, 0] = 0.5 * (a[:, 0] + 1.0) * tau_max[0]

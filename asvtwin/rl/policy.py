@@ -88,7 +88,8 @@ class NumpyPolicy:
         if n_in != 2:
             raise PolicyFileError(f"{path}: the output layer has {n_in} outputs, expected 2 "
                                   f"(surge, yaw)")
-        return cls([(W.astype(np.float64), b.astype(np.float64)) for W, b in layers], meta)
+        return cls([(W.astype(np.float64), np.asarray(b, dtype=np.float64))
+                    for W, b in layers], meta)
 
     def act(self, obs: ArrayLike) -> NDArray[np.float64]:
         """Deterministic actions (n, 2) in [−1, 1] for observations (n, obs_dim) or (obs_dim,)."""

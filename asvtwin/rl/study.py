@@ -182,9 +182,9 @@ def _write_outputs(out: Path, results: list[dict[str, Any]]) -> None:
     with open(out / "evaluation.csv", "w", newline="") as fh:
         evals = [e for r in results for e in r["evaluation"]]
         if evals:
-            w = csv.DictWriter(fh, fieldnames=list(evals[0]))
-            w.writeheader()
-            w.writerows(evals)
+            dw = csv.DictWriter(fh, fieldnames=list(evals[0]))
+            dw.writeheader()
+            dw.writerows(evals)
     fig = plot_training(rows)
     fig.savefig(out / "training.png", dpi=110)
 

@@ -95,6 +95,7 @@ def _make_vec_env(world: VecPathEnv, on_episode: Callable[[EpisodeRecord], None]
             self._actions = actions
 
         def step_wait(self) -> Any:
+            assert self._actions is not None, "step_wait() before step_async()"
             obs, r, term, trunc, records, final = world.step(self._actions)
             infos: list[dict[str, Any]] = [{} for _ in range(world.n)]
             for i, rec in enumerate(records):
@@ -191,7 +192,7 @@ def train(setup: str, *, steps: int, seed: int, out_dir: str | Path,
     set_random_seed(seed)
     world = VecPathEnv(ppo.n_envs, env_config, seed=seed + 1_000_003 * done_before)
     t_start = time.perf_counter()
-    state = {"episodes": n_rows, "collisions": 0, "last": []}
+    state: dict[str, Any] = {"episodes": n_rows, "collisions": 0, "last": []}
     fh = csv_path.open("a", newline="")
     writer = csv.DictWriter(fh, fieldnames=CSV_FIELDS)
     if n_rows == 0:
@@ -226,6 +227,14 @@ def train(setup: str, *, steps: int, seed: int, out_dir: str | Path,
                         ent_coef=ppo.ent_coef, learning_rate=ppo.learning_rate,
                         clip_range=ppo.clip_range, policy_kwargs=policy_kwargs,
                         seed=seed, device="cpu", verbose=0)
+        if ppo.warm_start_steps:
+            from asvtwin.rl.warm_start import clone_into, expert_dataset
+
+            X, Y = expert_dataset(env_config, steps=ppo.warm_start_steps, seed=seed)
+            loss = clone_into(model, X, Y, seed=seed)
+            log.info("warm start: cloned the line-of-sight expert on %d samples, MSE %.4f",
+                     len(X), loss)
+            request["warm_start_mse"] = round(loss, 6)
     model_ref["m"] = model
 
     def save_run(step: int, final: bool = False) -> None:

@@ -136,7 +136,7 @@ def test_nan_actions_become_the_safe_action_and_are_counted() -> None:
     np.testing.assert_allclose(tau[2], [1.2, 0.0, -0.045])
     env = VecPathEnv(2, EnvConfig(max_steps=5), seed=1)
     for _ in range(5):
-        _, _, _, trunc, recs, _ = env.step(np.array([[np.nan, np.nan], [0.0, 0.0]]))
+        _, _, _, _trunc, recs, _ = env.step(np.array([[np.nan, np.nan], [0.0, 0.0]]))
     assert recs[0] is not None and recs[0].nan_actions == 5 and recs[1].nan_actions == 0
 
 

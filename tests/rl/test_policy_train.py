@@ -92,8 +92,8 @@ def _write(path: Path, **arrays: object) -> Path:
 
 def test_bad_policy_files_name_the_file_and_the_expectation(tmp_path: Path) -> None:
     meta = np.array(json.dumps({"format": FORMAT, "obs_dim": 4}))
-    good = dict(W0=np.zeros((3, 4)), b0=np.zeros(3), W_out=np.zeros((2, 3)),
-                b_out=np.zeros(2), meta=meta)
+    good = {"W0": np.zeros((3, 4)), "b0": np.zeros(3), "W_out": np.zeros((2, 3)),
+                "b_out": np.zeros(2), "meta": meta}
     NumpyPolicy.load(_write(tmp_path / "ok.npz", **good))
     cases = {
         "shape.npz": (dict(good, W_out=np.zeros((2, 5))), r"W_out has shape \(2, 5\).*\(k, 3\)"),

@@ -53,8 +53,8 @@ def test_quick_study_cli(tmp_path: Path) -> None:
 def test_same_seed_same_rows_in_process_and_pool(tmp_path: Path) -> None:
     from asvtwin.rl.study import run_study
 
-    kw = dict(setups=["ppo"], seeds=[5], steps=256, env=TINY_ENV, ppo=TINY_PPO,
-              eval_episodes=0, checkpoint_every=10_000)
+    kw = {"setups": ["ppo"], "seeds": [5], "steps": 256, "env": TINY_ENV, "ppo": TINY_PPO,
+              "eval_episodes": 0, "checkpoint_every": 10_000}
     a = run_study(out=tmp_path / "a", workers=1, **kw)
     b = run_study(out=tmp_path / "b", workers=2, **kw)
     for ra, rb in zip(a["runs"], b["runs"]):
@@ -67,8 +67,8 @@ def test_ray_gives_the_same_rows_as_the_pool(tmp_path: Path) -> None:
     pytest.importorskip("ray")
     from asvtwin.rl.study import run_study
 
-    kw = dict(setups=["ppo"], seeds=[5], steps=256, env=TINY_ENV, ppo=TINY_PPO,
-              eval_episodes=0, checkpoint_every=10_000)
+    kw = {"setups": ["ppo"], "seeds": [5], "steps": 256, "env": TINY_ENV, "ppo": TINY_PPO,
+              "eval_episodes": 0, "checkpoint_every": 10_000}
     a = run_study(out=tmp_path / "a", workers=1, **kw)
     b = run_study(out=tmp_path / "b", ray_address="local", **kw)
     assert _rows(Path(a["runs"][0]["out_dir"])) == _rows(Path(b["runs"][0]["out_dir"]))
