@@ -13,7 +13,7 @@ DOC = Path(__file__).resolve().parents[2] / "docs" / "scenarios.md"
 
 def test_annotated_example_is_a_valid_scenario():
     text = DOC.read_text()
-    block = re.search(r"```yaml\n(.*?)```", text, re.S)
+    block = re.search(r"```yaml\n(.*?)```", text, re.DOTALL)
     assert block is not None
     s = parse_scenario(block.group(1), "docs/scenarios.md")
     assert s.name == "crossing_give_way"

@@ -156,25 +156,30 @@ def test_default_is_the_documented_embedded_default():
 # --------------------------------------------------------------------------- outcomes
 
 HAVE_RUNTIME = importlib.util.find_spec("asvtwin.twin.runtime") is not None
-#: Run by default (short); the others with ASVTWIN_FULL=1.
-QUICK = ("model_scale_crossing",)
+needs_runtime = pytest.mark.skipif(not HAVE_RUNTIME,
+                                   reason="asvtwin.twin.runtime is not available yet")
 
 
-def _outcome_params():
-    out = []
-    for name in NAMES:
-        if name == "default":
-            continue
-        marks = [] if name in QUICK else [pytest.mark.slow]
-        out.append(pytest.param(name, marks=marks))
-    return out
+@needs_runtime
+def test_short_model_scale_encounter_keeps_its_distance():
+    """Short real version (default): the model-scale crossing through its encounter (the
+    ships would meet at about 39 s); no collision and the distance criterion holds."""
+    from asvtwin.twin.runtime import run_scenario
+
+    s = load_library("model_scale_crossing")
+    summary = run_scenario(s, seed=s.seed, duration_s=60.0, record=False)
+    text = summary.text()
+    assert summary.collisions == 0 and summary.groundings == 0, text
+    assert min(summary.min_distance_targets_m.values()) >= s.criteria.min_distance_targets_m, text
 
 
-@pytest.mark.skipif(not HAVE_RUNTIME, reason="asvtwin.twin.runtime is not available yet")
-@pytest.mark.parametrize("name", _outcome_params())
+@needs_runtime
+@pytest.mark.slow
+@pytest.mark.parametrize("name", [n for n in NAMES if n != "default"])
 def test_expected_outcome(name):
-    """Run the scenario through the twin and check every criterion it states."""
-    if name not in QUICK and not full_run():
+    """Run the scenario through the twin for its whole duration and check every criterion
+    it states (ASVTWIN_FULL=1)."""
+    if not full_run():
         pytest.skip("full scenario runs: set ASVTWIN_FULL=1")
     from asvtwin.twin.runtime import run_scenario
 
@@ -186,3 +191,27 @@ def test_expected_outcome(name):
     for key, crit in summary.criteria.items():
         assert crit["pass"], f"{name}: criterion {key} failed\n{text}"
     assert summary.passed, text
+
+
+def test_every_library_file_validates_against_the_exported_json_schema():
+    """What an editor sees: the JSON Schema accepts every shipped file (an independent
+    validator, jsonschema, on the same files)."""
+    jsonschema = pytest.importorskip("jsonschema")
+    import datetime as dt
+
+    from ruamel.yaml import YAML
+
+    from asvtwin.scenarios import scenario_json_schema
+
+    def jsonable(v):
+        if isinstance(v, dict):
+            return {k: jsonable(x) for k, x in v.items()}
+        if isinstance(v, list):
+            return [jsonable(x) for x in v]
+        return v.isoformat() if isinstance(v, dt.datetime) else v
+
+    validator = jsonschema.Draft202012Validator(scenario_json_schema())
+    for name in NAMES:
+        doc = jsonable(YAML(typ="safe").load(library_path(name).read_text()))
+        errors = [e.message for e in validator.iter_errors(doc)]
+        assert not errors, f"{name}: {errors}"
