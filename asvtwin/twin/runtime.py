@@ -92,15 +92,16 @@ def comparable(message: bytes | dict[str, Any]) -> dict[str, Any]:
 
 
 def own_params(scenario: Scenario) -> VesselParams:
-    """The own ship's parameters; astern thrust as the scenario allows, when the vessel
-    model offers it (:func:`asvtwin.vessel.vessel_by_name`)."""
-    p = vessel_by_name(scenario.own_ship.vessel)
-    with_astern = getattr(p, "with_astern", None)
-    if scenario.own_ship.astern and callable(with_astern):
-        p = with_astern()
-    elif not scenario.own_ship.astern and p.actuators.tau_min[0] < 0:
-        import dataclasses
+    """The own ship's parameters: with bounded astern thrust when the scenario allows it
+    (:func:`asvtwin.vessel.actuators.with_astern`), forward-only otherwise."""
+    import dataclasses
 
+    p = vessel_by_name(scenario.own_ship.vessel)
+    if scenario.own_ship.astern:
+        from asvtwin.vessel.actuators import with_astern
+
+        return with_astern(p)
+    if p.actuators.tau_min[0] < 0:
         act = dataclasses.replace(p.actuators, tau_min=(0.0, *p.actuators.tau_min[1:]))
         p = dataclasses.replace(p, actuators=act)
     return p

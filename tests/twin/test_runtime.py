@@ -143,3 +143,12 @@ def test_model_scale_own_ship_through_the_filter():
     assert ob["samples"] > 10 and ob["settle_s"] < 30
     assert np.isfinite(list(ob["rmse"].values())).all()
     jsonschema.validate(decode(tw.latest_bytes()), json_schema())
+
+
+def test_own_ship_goes_astern_only_when_the_scenario_allows():
+    from asvtwin.twin.runtime import own_params
+
+    ahead = own_params(scenario())
+    astern = own_params(scenario(own_ship__astern=True))
+    assert ahead.actuators.tau_min[0] == 0.0
+    assert -astern.actuators.tau_min[0] == pytest.approx(0.6 * astern.actuators.tau_max[0], rel=0.01)
