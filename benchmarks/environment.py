@@ -57,8 +57,8 @@ def main() -> None:
                                    rtol=1e-10, atol=1e-6)
         before, after = [], []
         for _ in range(15):
-            before.append(_us(lambda: numpy_current_force(p, x, vc), 300))
-            after.append(_us(lambda: current_force(p, x, vc), 300))
+            before.append(_us(lambda x=x, vc=vc: numpy_current_force(p, x, vc), 300))
+            after.append(_us(lambda x=x, vc=vc: current_force(p, x, vc), 300))
         out[f"current_force_before_us_n{n}"] = round(statistics.median(before), 2)
         out[f"current_force_after_us_n{n}"] = round(statistics.median(after), 2)
         out[f"speedup_n{n}"] = round(statistics.median(before) / statistics.median(after), 1)

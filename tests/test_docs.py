@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import doctest
-import re
 import importlib
 import pkgutil
+import re
 import runpy
 from pathlib import Path
 
@@ -69,6 +69,6 @@ def test_markdown_python_blocks_run(page, tmp_path, monkeypatch, capsys):
     namespace: dict = {"__name__": f"docs_{page.stem}"}
     for line, code in blocks:
         try:
-            exec(compile(code, f"{page.name}:{line}", "exec"), namespace)
+            exec(compile(code, f"{page.name}:{line}", "exec"), namespace)  # noqa: S102
         except MissingExtraError as exc:
             pytest.skip(f"{page.name}:{line}: {exc}")

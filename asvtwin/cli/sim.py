@@ -140,7 +140,7 @@ def _run(args: argparse.Namespace) -> int:
     from rich.table import Table
 
     console = Console()
-    if aground is not None:
+    if aground is not None and scene is not None:
         console.print(f"[red]aground[/red] at t = {aground:.1f} s in {scene.name}")
     table = Table(title=f"{args.manoeuvre} — {params.name} (L = {params.length:g} m)")
     table.add_column("quantity")

@@ -97,8 +97,8 @@ def draw_coast(ax: Axes, land: Any, bounds_ne: Sequence[float], *,
     """
     import shapely
     from matplotlib.patches import PathPatch
-    from shapely.geometry.polygon import orient
     from matplotlib.path import Path as MplPath
+    from shapely.geometry.polygon import orient
 
     geom = getattr(land, "polygons", land)
     n0, e0, n1, e1 = (float(b) for b in bounds_ne)

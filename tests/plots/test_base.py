@@ -27,7 +27,7 @@ def _pixel(fig, ax, north: float, east: float) -> np.ndarray:
     fig.canvas.draw()
     img = np.asarray(fig.canvas.buffer_rgba())[..., :3].astype(int)
     x, y = ax.transData.transform((east, north))
-    return img[img.shape[0] - int(round(y)), int(round(x))]
+    return img[img.shape[0] - round(y), round(x)]
 
 
 @pytest.mark.parametrize("hole_clockwise", [True, False])

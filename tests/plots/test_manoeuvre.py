@@ -49,7 +49,7 @@ def test_thrust_is_shown_in_readable_units():
     fig = manoeuvre_figure(thrust_step(cybership2_full_scale()), length_m=88.0)
     labels = _texts(fig)
     assert "surge τ_u [kN]" in labels  # 703 kN, not 7.03e5 N
-    (line,) = [ax for ax in fig.axes if ax.get_ylabel() == "surge τ_u [kN]"][0].lines
+    (line,) = next(ax for ax in fig.axes if ax.get_ylabel() == "surge τ_u [kN]").lines
     # 2 N at model scale × 70³ × 1025/1000 = 703.2 kN
     assert abs(np.nanmax(line.get_ydata()) - 703.2) < 0.1
 
