@@ -182,3 +182,20 @@ def test_crab_compensation_holds_the_path_in_a_cross_current():
     # without compensation the ship settles set off to starboard; with it, on the path
     assert np.mean(without[late]) > 0.05
     assert abs(np.mean(with_c[late])) < 0.25 * np.mean(without[late])
+
+
+def test_numba_guidance_equals_the_numpy_steering_law(rng):
+    """LosGuidance (numba kernel) against los_steer (numpy) on one long leg, and the law's
+    invariants: the correction turns towards the path and stays within ±90° of it."""
+    a, b = np.array([100.0, -50.0]), np.array([2100.0, 950.0])
+    pts = a + rng.uniform([-200, -800], [1500, 800], (500, 2))
+    los = LosGuidance([a, b], lookahead_m=60.0, acceptance_radius_m=20.0)
+    out = los.step(pts)
+    chi, e, s, leg = los_steer(pts, a, b, 60.0)
+    assert not out.done.any() and (s < leg - 20.0).all()
+    np.testing.assert_allclose(out.cte_m, e, atol=1e-9)
+    np.testing.assert_allclose(np.cos(out.course_rad - chi), 1.0, atol=1e-12)
+    pi_p = math.atan2(b[1] - a[1], b[0] - a[0])
+    chi_r = (np.asarray(out.course_rad) - pi_p + np.pi) % (2 * np.pi) - np.pi
+    assert (np.abs(chi_r) < np.pi / 2).all()
+    assert (np.sign(chi_r) == -np.sign(e)).all()
