@@ -64,15 +64,22 @@ def _demo(args: argparse.Namespace) -> int:
     path = out / "psf_delta_u.csv"
     with path.open("w", newline="") as fh:
         w = csv.writer(fh)
+        # columns (docs/psf.md): plan_clearance_m is the plan's closest approach to an
+        # obstacle's edge over stages 1..N; d_safe_margin_m that minus d_safe (>= 0: the
+        # plan keeps d_safe); terminal_margin_m the stage-N distance minus d_safe + d_f
         w.writerow(["t_s", "u_L_surge_N", "u_L_yaw_Nm", "u0_surge_N", "u0_yaw_Nm",
-                    "delta_u_surge_N", "delta_u_sway_N", "delta_u_yaw_Nm", "fallback",
-                    "min_margin_m", "solve_ms"])
+                    "delta_u_surge_N", "delta_u_sway_N", "delta_u_yaw_Nm", "intervened",
+                    "fallback", "plan_clearance_m", "d_safe_margin_m", "terminal_margin_m",
+                    "solve_ms", "explanation"])
         for k, r in enumerate(res):
             uL = r.u0 + r.delta_u
+            m = r.obstacle_margin_m
+            d_margin = min(float(m[1:-1].min()), float(m[-1]) + psf.d_f_m)
             w.writerow([f"{k * psf.config.dt_s:.2f}", f"{uL[0]:.4f}", f"{uL[2]:.4f}",
                         f"{r.u0[0]:.4f}", f"{r.u0[2]:.4f}", f"{r.delta_u[0]:.4f}",
-                        f"{r.delta_u[1]:.4f}", f"{r.delta_u[2]:.4f}", r.fallback,
-                        f"{r.obstacle_margin_m[1:].min():.3f}", f"{r.solve_time_s * 1e3:.2f}"])
+                        f"{r.delta_u[1]:.4f}", f"{r.delta_u[2]:.4f}", int(r.intervened),
+                        r.fallback, f"{d_margin + psf.d_safe_m:.3f}", f"{d_margin:.3f}",
+                        f"{float(m[-1]):.3f}", f"{r.solve_time_s * 1e3:.2f}", r.explanation])
     print(f"wrote {png} and {path}; min clearance {run.min_clearance_m:.2f} m (filtered), "
           f"{free.min_clearance_m:.2f} m (unfiltered)")
     return 0

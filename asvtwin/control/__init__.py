@@ -4,7 +4,7 @@ Examples
 --------
 >>> from asvtwin.control import SafetyFilter, PsfConfig, CircleObstacles
 >>> from asvtwin.vessel import cybership2
->>> psf = SafetyFilter(cybership2(), config=PsfConfig(N=20, backend="casadi-ipopt"))
+>>> psf = SafetyFilter(cybership2(), config=PsfConfig(N=40, backend="casadi-ipopt"))
 >>> res = psf.filter([0, 0, 0, 0.3, 0, 0], [2.0, 0, 0],
 ...                  CircleObstacles(centres=[[30.0, 0.0]], radii=[1.0]), t_s=0.0)
 >>> res.fallback, bool(abs(res.delta_u[0]) < 0.01)
@@ -46,13 +46,10 @@ __all__ = [
     "ActiveConstraint",
     "BackupPlan",
     "Candidate",
-    "EncounterLimits",
-    "Encounters",
-    "classify_encounters",
-    "cpa_tcpa",
-    "obstacle_labels",
     "CircleObstacles",
     "CoastSegments",
+    "EncounterLimits",
+    "Encounters",
     "Fallback",
     "FilterResult",
     "MovingObstacles",
@@ -62,9 +59,12 @@ __all__ = [
     "TerminalSet",
     "available_backends",
     "braking_input",
+    "classify_encounters",
     "compute_terminal_set",
     "covariance_inflation",
+    "cpa_tcpa",
     "lidar_circles",
+    "obstacle_labels",
     "stage_circles",
     "verify_invariance",
 ]

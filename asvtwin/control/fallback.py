@@ -15,11 +15,13 @@ state and scored against the obstacles known now:
 - ``astern`` — full astern thrust, yaw damped (only for hulls that can go astern);
 - ``turn_starboard`` / ``turn_port`` — the full yaw moment for a third of the horizon or
   for all of it, with no thrust, full ahead thrust or (when available) astern thrust,
-  then coasting with the yaw rate damped.
+  then coasting with the yaw rate damped; or a turn on the spot for a quarter of the
+  horizon, then full ahead (astern) for a quarter, then coasting (the way out from rest).
 
-:func:`choose` takes the certified candidate closest to the learner's input (the least
+The filter takes the certified candidate closest to the learner's input (the least
 intervention); without one, the candidate whose closest approach to any obstacle over the
-horizon is largest. The learner's raw input is never applied on a failed solve.
+horizon is largest (inside d_safe: the one that gets furthest out by the horizon's end
+without coming closer on the way). The learner's raw input is never applied on a failed solve.
 """
 
 from __future__ import annotations
@@ -138,6 +140,13 @@ def candidate_inputs(params: VesselParams, x: _F8, t_s: float, N: int,
                 U[:n_turn, 0] = thrust
                 U[:n_turn, 2] = tr
                 out.append(Candidate(kind, f"{word}, {span}", U, n_turn))
+        # turn on the spot, then go ahead (or astern) and coast: the way out from rest
+        n1, n2 = max(1, N // 4), max(2, N // 2)
+        for thrust, word in thrusts[1:]:
+            U = np.zeros((N, 3))
+            U[:n1, 2] = tr
+            U[n1:n2, 0] = thrust
+            out.append(Candidate(kind, f"turn on the spot, then {word}", U, n1))
     return out
 
 

@@ -26,14 +26,20 @@ import warnings
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from asvtwin.control.backends import available_backends, make_backend
+from asvtwin.control.backends import Backend, available_backends, make_backend
 from asvtwin.control.backends.ocp import DUMMY_DISTANCE_FACTOR, OcpSpec
 from asvtwin.control.colreg import EncounterLimits, classify_encounters
 from asvtwin.control.explain import describe_change, describe_obstacle
 from asvtwin.control.fallback import BackupPlan, Candidate, Fallback, candidate_inputs, damp_yaw
 from asvtwin.control.kernels import certify, rollout, warm_up
 from asvtwin.control.obstacles import CoastSegments, Obstacles, obstacle_labels, stage_circles
-from asvtwin.control.result import CS2_LENGTH_M, ActiveConstraint, FilterResult, PsfConfig
+from asvtwin.control.result import (
+    CS2_LENGTH_M,
+    ActiveConstraint,
+    FilterResult,
+    PsfConfig,
+    ResolvedPsfConfig,
+)
 from asvtwin.control.terminal_set import TerminalSet, compute_terminal_set
 from asvtwin.errors import ConfigError, SolverError, StateError
 from asvtwin.vessel.params import VesselParams
@@ -78,10 +84,10 @@ class SafetyFilter:
     --------
     >>> from asvtwin.control import SafetyFilter, PsfConfig, CircleObstacles
     >>> from asvtwin.vessel import cybership2
-    >>> psf = SafetyFilter(cybership2(), config=PsfConfig(N=20, backend="casadi-ipopt"))
+    >>> psf = SafetyFilter(cybership2(), config=PsfConfig(N=40, backend="casadi-ipopt"))
     >>> rock = CircleObstacles(centres=[[12.0, 0.0]], radii=[1.0])
     >>> res = psf.filter([0, 0, 0, 0.3, 0, 0], [2.0, 0, 0], rock, t_s=0.0)
-    >>> res.fallback, bool(res.u0[0] < 1.0), res.intervened  # thrust cut, turn started
+    >>> res.fallback, res.intervened, "obstacle 0 ahead" in res.explanation
     ('none', True, True)
     """
 
@@ -91,8 +97,10 @@ class SafetyFilter:
         scale = params.length / CS2_LENGTH_M
         sq = math.sqrt(scale)
         # Froude similarity: times scale by √λ, so the horizon covers the same manoeuvre
-        cfg = dataclasses.replace(cfg, dt_s=cfg.dt_s if cfg.dt_s is not None else 0.5 * sq)
-        self.config = cfg
+        fields = {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg)}
+        fields["dt_s"] = cfg.dt_s if cfg.dt_s is not None else 0.5 * sq
+        cfg = ResolvedPsfConfig(**fields)
+        self.config: ResolvedPsfConfig = cfg
         self.d_safe_m = cfg.d_safe_m if cfg.d_safe_m is not None else params.length
         self.d_f_m = cfg.d_f_m if cfg.d_f_m is not None else 6.0 * params.length
         self.nu_max = np.asarray(cfg.nu_max if cfg.nu_max is not None
@@ -162,7 +170,7 @@ class SafetyFilter:
         self._t: float | None = None
         self._dropped_logged = False
 
-    def _make_backend(self, cfg: PsfConfig):  # type: ignore[no-untyped-def]
+    def _make_backend(self, cfg: PsfConfig) -> Backend:
         name = cfg.backend if cfg.backend != "auto" else available_backends()[0]
         opts: dict[str, object] = ({"rti_steps": cfg.rti_steps} if name == "acados"
                                    else {"max_iter": cfg.max_iter})
@@ -295,8 +303,8 @@ class SafetyFilter:
         else:
             ok = low >= -tol
         if not ok:
-            return False, f"plan violates obstacle clearance (closest {path_low:+.2f} m " \
-                          "against d_safe)", path_low
+            return False, (f"plan violates obstacle clearance (closest {path_low:+.2f} m "
+                           "against d_safe)"), path_low
         if term < -_TERM_TOL:
             return False, "plan ends outside the terminal set", path_low
         return True, "", path_low
@@ -343,7 +351,7 @@ class SafetyFilter:
             or the obstacles, a non-positive radius. An obstacle that contains the own
             ship, or a solver that raises, still returns an input (recovery, fallback).
         """
-        cfg, N, dt = self.config, self.config.N, float(self.config.dt_s or 0.5)
+        cfg, N, dt = self.config, self.config.N, self.config.dt_s
         x = _validate(x, 6, "state x", ("x", "y", "psi", "u", "v", "r"))
         u_given = _validate(u_L, 3, "learner input u_L", ("tau_u", "tau_v", "tau_r"))
         d = np.zeros(3) if d_hat is None else _validate(d_hat, 3, "disturbance d_hat",
@@ -360,6 +368,11 @@ class SafetyFilter:
                          f"[{self.u_lb.tolist()}, {self.u_ub.tolist()}], clipped")
         centres, radii, segs = stage_circles(obstacles, N)
         labels, moving = obstacle_labels(obstacles)
+        if moving.any():
+            # eq. (f) asks d_safe + d_f at stage N so that braking stops short of a *static*
+            # obstacle; a vessel's motion beyond the horizon is unknown, and keeping d_f
+            # from its predicted end point traps the own ship alongside it: d_safe only
+            radii[N, moving] -= self.d_f_m
         # 1. a plan starting with u_L: the shifted last plan, or coasting with yaw damped
         tries = self._learner_plans(x, uL, t_s)
         first = None
@@ -378,7 +391,7 @@ class SafetyFilter:
                                     radii, segs, labels, moving, True, "u_L certified", "",
                                     0, 0.0, Fallback.NONE, first, (), notes, passed=True)
         assert first is not None
-        X_L, margins_L, _, why_L = first
+        X_L, margins_L, _, _ = first
         m0 = margins_L[0]
         # 2. the OCP, warm-started from the last solver plan (COLREG: from a starboard turn)
         xg, ug = self._guess(x, uL, d, t_s)
@@ -386,7 +399,7 @@ class SafetyFilter:
         if sb is not None and ug[: max(1, N // 3), 2].sum() <= 0:
             cand = Candidate(Fallback.TURN_STARBOARD, "colreg", sb, max(1, N // 3))
             xg, ug = self._simulate(x, cand, d)
-        P, ci, si = self._stage_params(x, d, centres, radii, segs, [X_L[:, :2], xg[:, :2]])
+        P, _, _ = self._stage_params(x, d, centres, radii, segs, [X_L[:, :2], xg[:, :2]])
         attempts = 1 if self._solved_last else cfg.cold_start_solves
         iters, t_solve, status, solver_why = 0, 0.0, "", ""
         best: tuple | None = None  # (X, U, margins, term, certified, why, path_low)
@@ -400,7 +413,7 @@ class SafetyFilter:
                     status, ok = raw.status, raw.success
                     iters += raw.iterations
                     t_solve += raw.solve_time_s
-                except Exception as exc:  # any solver failure ends in the checked fallback
+                except Exception as exc:  # noqa: BLE001 - any solver failure ends in the fallback
                     U, status, ok = ug, f"solver error: {type(exc).__name__}: {exc}", False
                     raw = None
                 X = self.rollout(x, U, d)  # certify on the model, not on the solver's claim
@@ -486,6 +499,15 @@ class SafetyFilter:
         certified = [r for r in rows if r[6]]
         if certified:
             pick = min(certified, key=lambda r: r[9])
+        elif m0.size and m0.min() < 0:  # inside d_safe: out by the end, no closer on the way
+            floor = np.minimum(m0, 0.0) - self.certify_tol_m
+
+            def out_score(r: tuple) -> tuple:
+                mg = r[4]
+                end = float(mg[-1].min()) + self.d_f_m if mg.shape[1] else 0.0
+                return (bool(np.all(mg[1:] >= floor)), end, r[8])
+
+            pick = max(rows, key=out_score)
         else:
             pick = max(rows, key=lambda r: (r[8] if math.isfinite(r[8]) else -1e300, r[5]))
         scores = sorted(((r[0].value, r[1], round(float(r[8] + self.d_safe_m), 4),
@@ -498,7 +520,7 @@ class SafetyFilter:
         N = self.config.N
         if self._last is not None:
             t0, X, U = self._last
-            i = round((t_s - t0) / float(self.config.dt_s or 0.5))
+            i = round((t_s - t0) / self.config.dt_s)
             if 0 <= i < N:
                 Ug = np.empty((N, 3))
                 Ug[: N - i] = U[i:]
@@ -519,7 +541,7 @@ class SafetyFilter:
                 iters: int, t_solve: float, fb: Fallback, first: tuple,
                 scored: tuple, notes: list[str], *, passed: bool = False,
                 detail: str = "") -> FilterResult:
-        N, dt = self.config.N, float(self.config.dt_s or 0.5)
+        N, dt = self.config.N, self.config.dt_s
         m = centres.shape[1]
         tol = 0.05 * self.params.length
         seg_label = "the coast"
@@ -536,9 +558,11 @@ class SafetyFilter:
                 crit_stages.add(k)
                 if intervened:
                     v = float(margins[k, j])
-                    kind = "circle" if j < m else "segment"
-                    active.append(ActiveConstraint(kind, j if j < m else j - m, k, v,
-                                                   k * dt, names[j]))
+                    if j < m:
+                        active.append(ActiveConstraint("circle", j, k, v, k * dt, names[j]))
+                    else:
+                        active.append(ActiveConstraint("segment", j - m, k, v, k * dt,
+                                                       names[j]))
             # the binding circles at the stage where they bind (predicted positions)
             for j in sorted({j for j in js.tolist() if j < m}):
                 k = int(np.argmin(margins[1:, j])) + 1
@@ -554,7 +578,7 @@ class SafetyFilter:
                 active.append(ActiveConstraint("terminal_set", 0, N, term, N * dt))
         obst = margins.min(axis=1) if margins.shape[1] else np.full(N + 1, np.inf)
         # the explanation: cause (from the plan that starts with u_L), change, what it keeps
-        X_L, margins_L, term_L, why_L = first
+        _, margins_L, term_L, _ = first
         keeps = (float(np.min(obst[1:-1] + self.d_safe_m)) if margins.shape[1] else math.inf)
         words: list[str] = []
         if passed or not intervened:

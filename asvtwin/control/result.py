@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from asvtwin.errors import ConfigError
 
-__all__ = ["ActiveConstraint", "FilterResult", "PsfConfig"]
+__all__ = ["ActiveConstraint", "FilterResult", "PsfConfig", "ResolvedPsfConfig"]
 
 _F8 = NDArray[np.float64]
 #: CyberShip II's length [m]: the reference for the model-scale defaults below.
@@ -117,6 +117,14 @@ class PsfConfig:
             if not ok:
                 raise ConfigError(f"PsfConfig.{name} must be {expected}, actually: "
                                   f"{getattr(self, name)!r}")
+
+
+@dataclass(frozen=True)
+class ResolvedPsfConfig(PsfConfig):
+    """A :class:`PsfConfig` as a filter uses it: ``dt_s`` resolved to a number [s]
+    (``SafetyFilter.config``)."""
+
+    dt_s: float = 0.5
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,14 @@ def test_psf_demo_writes_png_and_csv(tmp_path, psf):
         du = float(r["delta_u_surge_N"])
         assert abs(du - (float(r["u_L_surge_N"]) - float(r["u0_surge_N"]))) < 2e-4
         assert r["fallback"] in [f.value for f in Fallback]
+        # the columns agree: clearance = d_safe + margin; a certified plan keeps d_safe
+        assert abs(float(r["plan_clearance_m"]) - float(r["d_safe_margin_m"]) - 1.255) < 2e-3
+        if r["fallback"] == "none":
+            assert float(r["d_safe_margin_m"]) > -0.03  # certification tolerance 2 % L
+        if r["intervened"] == "1":
+            assert "no intervention" not in r["explanation"]
+        else:
+            assert r["explanation"].startswith("no intervention") or r["fallback"] != "none"
 
 
 def test_psf_help(capsys):

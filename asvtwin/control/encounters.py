@@ -1,0 +1,304 @@
+"""A set of classic encounters to test the safety filter on, at either hull scale.
+
+Each :class:`EncounterCase` is written at model scale (CyberShip II, L = 1.255 m, cruise
+0.3 m/s, below the ~0.35 m/s where the published hull becomes course-unstable) in units a navigator recognises and scaled by Froude similarity to any hull
+(:meth:`EncounterCase.scaled`: lengths by λ = L / 1.255 m, speeds and times by √λ).
+
+- **Vessel encounters** (22): head-on (rule 14), crossing from starboard (15, give way),
+  crossing from port (17, stand on), fine crossing from starboard, overtaking (13) and
+  being overtaken, alone and in 10 two-vessel and 6 three-vessel combinations. Each
+  target keeps a constant velocity that brings it to the own ship's unfiltered track
+  point at its meeting time (50 s, then 62 s and 38 s for a second and third vessel):
+  without the filter every one of them collides.
+- **Coast approaches** (2): a headland that juts across the route, and a harbour front
+  with piers (a quay with five piers drawn as a chart draws them, 125 short shore
+  segments, 30 to 60 of them within reach at a time; drawn for this set, not charted).
+- **Sudden obstacles** (2): a rock that appears 8 m and 6 m ahead (model scale) in
+  the middle of the run, the detection-late case of a LiDAR return. The route runs
+  through the rock: a path follower cannot reach the goal (replanning is the learner's
+  job), so these cases score safety only (``goal_expected`` False).
+
+:func:`run_encounter` drives the own ship with a path-following learner (the
+project's LOS guidance and heading/speed autopilot, at cruise speed along the route)
+through the filter on the project's simulator (thruster lag included), the filter
+seeing ground-truth constant-velocity predictions of the targets (ids "track 1..n"),
+every static obstacle and the coast within 30 ship lengths.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import Counter
+from dataclasses import dataclass, field, replace
+from itertools import pairwise
+
+import numpy as np
+from numpy.typing import NDArray
+
+from asvtwin.control.obstacles import CircleObstacles, CoastSegments, MovingObstacles
+from asvtwin.control.psf import SafetyFilter
+from asvtwin.vessel.params import VesselParams
+from asvtwin.vessel.simulator import VesselSimulator
+
+__all__ = ["SINGLE_KINDS", "EncounterCase", "EncounterRun", "encounter_cases",
+           "run_encounter"]
+
+_F8 = NDArray[np.float64]
+L_MODEL = 1.255  # m
+U_CRUISE = 0.3  # m/s, model scale (CyberShip II is course-unstable above ~0.35 m/s)
+T_MEET = (50.0, 62.0, 38.0)  # s: meeting times of the first, second and third vessel
+#: Single-vessel encounters: (course of the target relative to own [deg], speed factor).
+SINGLE_KINDS: dict[str, tuple[float, float]] = {
+    "head_on": (180.0, 1.0),
+    "crossing_starboard": (270.0, 1.0),
+    "crossing_port": (90.0, 1.0),
+    "fine_crossing": (210.0, 1.0),
+    "overtaking": (0.0, 0.35),
+    "overtaken": (0.0, 1.6),
+}
+_STARBOARD = {"head_on", "crossing_starboard", "fine_crossing"}
+_PAIRS = [("head_on", "crossing_starboard"), ("head_on", "crossing_port"),
+          ("head_on", "overtaken"), ("crossing_starboard", "crossing_port"),
+          ("crossing_starboard", "overtaken"), ("crossing_port", "overtaken"),
+          ("fine_crossing", "overtaking"), ("overtaking", "crossing_starboard"),
+          ("overtaking", "head_on"), ("fine_crossing", "crossing_port")]
+_TRIPLES = [("head_on", "crossing_starboard", "crossing_port"),
+            ("crossing_starboard", "overtaken", "head_on"),
+            ("crossing_port", "overtaken", "overtaking"),
+            ("fine_crossing", "crossing_port", "overtaken"),
+            ("head_on", "overtaking", "crossing_starboard"),
+            ("crossing_starboard", "crossing_port", "overtaken")]
+
+
+@dataclass(frozen=True)
+class EncounterCase:
+    """One encounter: own start, route, targets, static obstacles and coast (NED, SI).
+
+    ``appear_s`` gives each static circle the time it becomes known (0: from the start).
+    ``starboard_expected``: COLREG expects an alteration to starboard (every target is
+    met head-on or crossing from starboard).
+    """
+
+    name: str
+    family: str
+    x0: _F8
+    route: _F8
+    duration_s: float
+    target_p0: _F8 = field(default_factory=lambda: np.zeros((0, 2)))
+    target_v: _F8 = field(default_factory=lambda: np.zeros((0, 2)))
+    target_r: _F8 = field(default_factory=lambda: np.zeros(0))
+    circles: _F8 = field(default_factory=lambda: np.zeros((0, 3)))
+    appear_s: _F8 = field(default_factory=lambda: np.zeros(0))
+    coast: _F8 = field(default_factory=lambda: np.zeros((0, 4)))
+    starboard_expected: bool = False
+    cruise_m_s: float = U_CRUISE
+    length_m: float = L_MODEL
+    goal_expected: bool = True
+
+    def scaled(self, length_m: float) -> EncounterCase:
+        """The same case for a hull of ``length_m`` [m] (Froude similarity)."""
+        lam = length_m / self.length_m
+        sq = math.sqrt(lam)
+        x0 = self.x0.copy()
+        x0[:2] *= lam
+        x0[3:5] *= sq
+        x0[5] /= sq
+        return replace(self, x0=x0, route=self.route * lam, duration_s=self.duration_s * sq,
+                       target_p0=self.target_p0 * lam, target_v=self.target_v * sq,
+                       target_r=self.target_r * lam, circles=self.circles * lam,
+                       appear_s=self.appear_s * sq, coast=self.coast * lam,
+                       cruise_m_s=self.cruise_m_s * sq, length_m=length_m)
+
+    def targets_at(self, t_s: float) -> _F8:
+        return self.target_p0 + t_s * self.target_v
+
+
+def _vessel_case(kinds: tuple[str, ...]) -> EncounterCase:
+    U = U_CRUISE
+    route_len = 2 * T_MEET[0] * U
+    p0, v = [], []
+    for i, k in enumerate(kinds):
+        course, f = SINGLE_KINDS[k]
+        c = math.radians(course)
+        vt = f * U * np.array([math.cos(c), math.sin(c)])
+        meet = np.array([U * T_MEET[i], 0.0])
+        p0.append(meet - vt * T_MEET[i])
+        v.append(vt)
+    name = "+".join(kinds)
+    return EncounterCase(
+        name=name, family=f"{len(kinds)}_vessel", x0=np.array([0.0, 0.0, 0.0, U, 0.0, 0.0]),
+        route=np.array([[0.0, 0.0], [route_len, 0.0]]), duration_s=4.0 * T_MEET[0],
+        target_p0=np.array(p0), target_v=np.array(v), target_r=np.full(len(kinds),
+                                                                       0.5 * L_MODEL),
+        starboard_expected=all(k in _STARBOARD for k in kinds))
+
+
+def _polygon_segments(pts: list[list[float]]) -> _F8:
+    p = np.asarray(pts, dtype=float)
+    return np.concatenate([p, np.roll(p, -1, axis=0)], axis=1)
+
+
+def _harbour_coast() -> _F8:
+    """A quay with five piers east of the route (model scale) [n0, e0, n1, e1]."""
+    segs = []
+    quay_e = 16.0  # the quay line 16 m east of the route
+    north = np.linspace(-10.0, 70.0, 41)
+    for a, b in pairwise(north):  # the quay front, 2 m segments
+        segs.append([a, quay_e, b, quay_e])
+    for pn in (10.0, 22.0, 34.0, 46.0, 58.0):  # piers 1.5 m wide reaching 7 m west
+        poly = np.array([[pn, quay_e], [pn, quay_e - 7.0], [pn + 1.5, quay_e - 7.0],
+                         [pn + 1.5, quay_e]])
+        for n_sub in range(8):  # piers drawn as a chart would: many short edges
+            f0, f1 = n_sub / 8, (n_sub + 1) / 8
+            segs.append([pn, quay_e - 7 * f0, pn, quay_e - 7 * f1])
+            segs.append([pn + 1.5, quay_e - 7 * f0, pn + 1.5, quay_e - 7 * f1])
+        segs.append(list(poly[1]) + list(poly[2]))  # the pier head
+    return np.array(segs)
+
+
+def encounter_cases(*, include: tuple[str, ...] = ("vessels", "coast", "sudden")
+                    ) -> list[EncounterCase]:
+    """The encounter set at model scale (see the module docstring)."""
+    out: list[EncounterCase] = []
+    if "vessels" in include:
+        out += [_vessel_case((k,)) for k in SINGLE_KINDS]
+        out += [_vessel_case(p) for p in _PAIRS]
+        out += [_vessel_case(t) for t in _TRIPLES]
+    U = U_CRUISE
+    x0 = np.array([0.0, 0.0, 0.0, U, 0.0, 0.0])
+    route = np.array([[0.0, 0.0], [60.0, 0.0]])
+    if "coast" in include:
+        # a headland from the east reaching 1 m west of the route at 30 m north
+        head = _polygon_segments([[26.0, 25.0], [30.0, -1.0], [34.0, 25.0]])
+        out.append(EncounterCase(name="coast_headland", family="coast", x0=x0, route=route,
+                                 duration_s=300.0, coast=head))
+        out.append(EncounterCase(name="harbour_piers", family="coast", x0=x0,
+                                 route=route, duration_s=300.0, coast=_harbour_coast()))
+    if "sudden" in include:
+        for dist in (8.0, 6.0):  # a rock of 1 m radius detected dist ahead at 20 s
+            n = U * 20.0 + dist + 1.0
+            out.append(EncounterCase(
+                name=f"sudden_rock_{dist:g}m", family="sudden", x0=x0, route=route,
+                duration_s=120.0, circles=np.array([[n, 0.3, 1.0]]),
+                appear_s=np.array([20.0]), goal_expected=False))
+    return out
+
+
+@dataclass
+class EncounterRun:
+    """Outcome of one encounter run (SI; distances from the own ship's origin to an
+    obstacle's edge)."""
+
+    name: str
+    family: str
+    backend: str
+    length_m: float
+    collisions: int
+    groundings: int
+    min_distance_m: float  # to targets and static circles
+    min_distance_land_m: float
+    goal_reached: bool
+    calls: int
+    interventions: int
+    fallbacks: dict[str, int]
+    starboard: bool | None  # None: not expected, or no manoeuvre
+    call_ms: list[float]
+    goal_expected: bool = True
+
+    def to_dict(self) -> dict:
+        d = dict(self.__dict__)
+        d["call_ms_median"] = float(np.median(self.call_ms)) if self.call_ms else 0.0
+        d.pop("call_ms")
+        return d
+
+
+def run_encounter(case: EncounterCase, params: VesselParams, psf: SafetyFilter | None, *,
+                  sim_substeps: int = 5) -> EncounterRun:
+    """Drive the case with the path-following learner through ``psf`` (None: unfiltered)."""
+    from asvtwin.guidance import HeadingSpeedAutopilot, LosGuidance
+
+    c = case.scaled(params.length) if abs(case.length_m - params.length) > 1e-9 else case
+    L = params.length
+    dt = psf.config.dt_s if psf is not None else 0.5 * math.sqrt(L / L_MODEL)
+    N = psf.config.N if psf is not None else 0
+    los = LosGuidance(c.route, lookahead_m=3.0 * L, acceptance_radius_m=2.0 * L)
+    ap = HeadingSpeedAutopilot(params)
+    sim = VesselSimulator(params, c.x0, dt_s=dt / sim_substeps)
+    if psf is not None:
+        psf.reset()
+    x = c.x0.copy()
+    coast = CoastSegments(c.coast)
+    ids = list(range(1, len(c.target_r) + 1))
+    min_d, min_land = math.inf, math.inf
+    coll = grounded = 0
+    in_contact = False
+    fb: Counter[str] = Counter()
+    calls = inter = 0
+    ys: list[float] = []
+    call_ms: list[float] = []
+    goal = False
+    t = 0.0
+    t_last_cpa = float(np.max(T_MEET[: len(c.target_r)]) * c.duration_s / (4 * T_MEET[0])
+                       ) if len(c.target_r) else 0.0
+    while t < c.duration_s:
+        g = los.step(x[:2])
+        if bool(g.done) or np.hypot(*(x[:2] - c.route[-1])) < 2.0 * L:
+            goal = True
+            break
+        u_L = ap.tau(x, float(g.course_rad), c.cruise_m_s)
+        if psf is not None:
+            obs: list = []
+            known = c.appear_s <= t + 1e-9
+            if known.any():
+                obs.append(CircleObstacles(c.circles[known, :2], c.circles[known, 2],
+                                           ids=tuple(f"rock {i}" for i in np.flatnonzero(known))))
+            if len(coast):
+                near = coast.distances(x[:2])[0] <= 30.0 * L
+                if near.any():
+                    obs.append(CoastSegments(c.coast[near]))
+            if len(c.target_r):
+                obs.append(MovingObstacles.constant_velocity(
+                    c.targets_at(t), c.target_v, c.target_r, N=N, dt_s=dt, ids=ids))
+            c0 = time.perf_counter()
+            res = psf.filter(x, u_L, obs, t_s=t)
+            call_ms.append((time.perf_counter() - c0) * 1e3)
+            u = res.u0
+            calls += 1
+            inter += res.intervened
+            if res.fallback != "none":
+                fb[res.fallback] += 1
+        else:
+            u = u_L
+        for j in range(sim_substeps):
+            x = sim.step(u)
+            tj = t + (j + 1) * dt / sim_substeps
+            d = math.inf
+            if len(c.target_r):
+                d = float(np.min(np.linalg.norm(c.targets_at(tj) - x[:2], axis=1)
+                                 - c.target_r))
+            if len(c.circles):
+                d = min(d, float(np.min(np.linalg.norm(c.circles[:, :2] - x[:2], axis=1)
+                                        - c.circles[:, 2])))
+            contact = d < 0.5 * L
+            coll += contact and not in_contact
+            in_contact = contact
+            min_d = min(min_d, d)
+            if len(coast):
+                dl = float(coast.distances(x[:2])[0].min())
+                min_land = min(min_land, dl)
+                grounded = grounded or dl < 0.5 * L
+        if t <= t_last_cpa:
+            ys.append(float(x[1]))
+        t += dt
+    starboard = None
+    if c.starboard_expected and ys:
+        ya = np.asarray(ys)
+        if np.max(np.abs(ya)) >= 0.5 * L:
+            starboard = bool(ya.max() > -ya.min())
+    return EncounterRun(
+        name=c.name, family=c.family, backend=psf.backend.name if psf else "unfiltered",
+        length_m=L, collisions=int(coll), groundings=int(grounded), min_distance_m=min_d,
+        min_distance_land_m=min_land, goal_reached=goal, calls=calls, interventions=inter,
+        fallbacks=dict(fb), starboard=starboard, call_ms=call_ms,
+        goal_expected=c.goal_expected)

@@ -1,0 +1,88 @@
+"""The encounter set: its coverage, Froude scaling, and the filter through it.
+
+By default a quick real subset runs on the fastest installed backend at both scales;
+ASVTWIN_FULL=1 runs every case on every installed backend at both scales.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from asvtwin.control import PsfConfig, SafetyFilter, available_backends
+from asvtwin.control.encounters import SINGLE_KINDS, encounter_cases, run_encounter
+from asvtwin.vessel import cybership2, cybership2_full_scale
+from tests.conftest import full_run
+
+TOL = 0.05  # closed-loop tolerance on d_safe: 2 % certification + model mismatch (lag)
+
+
+def test_the_set_covers_the_classic_encounters():
+    cases = encounter_cases()
+    vessels = [c for c in cases if c.family.endswith("vessel")]
+    assert len(vessels) == 22
+    assert {len(c.target_r) for c in vessels} == {1, 2, 3}
+    for k in SINGLE_KINDS:  # every kind alone and in company
+        assert sum(k in c.name.split("+") for c in vessels) >= 4
+    harbour = next(c for c in cases if c.name == "harbour_piers")
+    assert len(harbour.coast) > 100
+    assert {c.family for c in cases} >= {"1_vessel", "2_vessel", "3_vessel", "coast",
+                                         "sudden"}
+
+
+def test_scaling_is_froude():
+    c = encounter_cases(include=("vessels",))[0]
+    f = c.scaled(88.0)
+    lam = 88.0 / 1.255
+    np.testing.assert_allclose(f.target_p0, c.target_p0 * lam)
+    np.testing.assert_allclose(f.target_v, c.target_v * math.sqrt(lam))
+    assert f.duration_s == pytest.approx(c.duration_s * math.sqrt(lam))
+    # the meeting point scales with it: target and own ship meet at the scaled time
+    t = 50.0 * math.sqrt(lam)
+    np.testing.assert_allclose(f.targets_at(t)[0], [f.cruise_m_s * t, 0.0], atol=1e-6)
+
+
+def test_without_the_filter_every_vessel_encounter_collides():
+    p = cybership2()
+    for c in encounter_cases(include=("vessels", "sudden")):
+        r = run_encounter(c, p, None)
+        assert r.collisions >= 1, c.name
+
+
+def _check(runs, d_safe):
+    for r in runs:
+        assert r.collisions == 0 and r.groundings == 0, r
+        assert r.min_distance_m >= (1 - TOL) * d_safe, r
+        assert r.min_distance_land_m >= (1 - TOL) * d_safe, r
+        if r.goal_expected:
+            assert r.goal_reached, r
+
+
+QUICK = ("head_on", "crossing_starboard+overtaken", "harbour_piers", "sudden_rock_6m")
+
+
+@pytest.mark.parametrize("hull", [cybership2, cybership2_full_scale])
+def test_filter_through_a_quick_subset(hull):
+    p = hull()
+    psf = SafetyFilter(p, config=PsfConfig(backend=available_backends()[0]))
+    names = QUICK if hull is cybership2 else QUICK[:2]
+    runs = [run_encounter(c, p, psf) for c in encounter_cases() if c.name in names]
+    assert len(runs) == len(names)
+    _check(runs, psf.d_safe_m)
+    head_on = next(r for r in runs if r.name == "head_on")
+    assert head_on.starboard is True  # rule 14
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not full_run(), reason="set ASVTWIN_FULL=1 for the whole set")
+@pytest.mark.parametrize("backend", available_backends()[:2])
+@pytest.mark.parametrize("hull", [cybership2, cybership2_full_scale])
+def test_filter_through_the_whole_set(hull, backend):
+    p = hull()
+    psf = SafetyFilter(p, config=PsfConfig(backend=backend))
+    runs = [run_encounter(c, p, psf) for c in encounter_cases()]
+    _check(runs, psf.d_safe_m)
+    stb = [r.starboard for r in runs if r.starboard is not None]
+    assert sum(stb) >= 0.8 * len(stb)

@@ -1,0 +1,229 @@
+"""The fault catalogue of the safety filter: each returns an input, never u_L when
+uncertified, and an explanation naming the cause."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pytest
+
+from asvtwin.control import (
+    CircleObstacles,
+    CoastSegments,
+    MovingObstacles,
+    PsfConfig,
+    SafetyFilter,
+)
+from asvtwin.control.backends.base import RawSolution
+from asvtwin.errors import ConfigError
+from asvtwin.vessel import cybership2_full_scale
+from asvtwin.vessel.actuators import with_astern
+
+FULL_AHEAD = np.array([2.0, 0.0, 0.0])
+
+
+class _Raising:
+    """A backend that raises something other than RuntimeError."""
+
+    def __init__(self, inner, exc):
+        self.inner, self.name, self.spec, self.exc = inner, inner.name, inner.spec, exc
+
+    def solve(self, *a):
+        raise self.exc
+
+    def reset(self):
+        pass
+
+
+class _NaN(_Raising):
+    def solve(self, x0, u_L, P, xg, ug):
+        N = self.spec.N
+        return RawSolution(x=np.full((N + 1, 6), np.nan), u=np.full((N, 3), np.nan),
+                           max_slack=0.0, success=True, status="ok", iterations=1,
+                           solve_time_s=0.0)
+
+
+def _run(psf, x, u_L, obs, steps, dt=None):
+    """Closed loop on the planning model; returns results and the distance history."""
+    dt = dt or psf.config.dt_s
+    out = []
+    for k in range(steps):
+        r = psf.filter(x, u_L, obs, t_s=k * dt)
+        out.append((x.copy(), r))
+        x = psf.rollout(x, r.u_pred)[1]
+    return out, x
+
+
+def _filter_with(psf, backend):
+    """One call at 0.5 m/s towards a rock 7 m ahead with ``backend`` swapped in."""
+    inner = psf.backend
+    psf.reset()
+    psf.backend = backend
+    try:
+        return psf.filter([0, 0, 0, 0.5, 0, 0], FULL_AHEAD, CircleObstacles([[9.0, 0]], [2.0]))
+    finally:
+        psf.backend = inner
+        psf.reset()
+
+
+@pytest.mark.parametrize("exc", [ValueError("bad"), ZeroDivisionError(), KeyError("k")])
+def test_any_solver_exception_ends_in_a_checked_fallback(psf, exc):
+    res = _filter_with(psf, _Raising(psf.backend, exc))
+    assert res.fallback != "none" and not np.allclose(res.u0, FULL_AHEAD)
+    assert type(exc).__name__ in res.reason and "obstacle 0" in res.explanation
+
+
+def test_nan_plan_is_named_as_such(psf):
+    res = _filter_with(psf, _NaN(psf.backend, None))
+    assert "not finite" in res.reason and np.all(np.isfinite(res.u0))
+    assert "violates obstacle clearance" not in res.reason
+
+
+def test_sudden_rock_ahead_is_not_run_over_by_the_old_tail(psf):
+    """A certified plan straight ahead, then a rock detected 8 m ahead (model scale)."""
+    psf.reset()
+    x = np.array([0.0, 0.0, 0.0, 0.55, 0.0, 0.0])
+    free = psf.filter(x, [1.0, 0, 0], None, t_s=0.0)
+    assert free.fallback == "none" and not free.intervened
+    rock = CircleObstacles([[9.0, 0.0]], [1.0], ids=["rock 7"])  # edge 8 m ahead
+    hist, _ = _run(psf, x, np.array([1.0, 0, 0]), rock, 60)
+    dmin = min(np.hypot(xx[0] - 9.0, xx[1]) - 1.0 for xx, _ in hist)
+    first = hist[1][1]
+    assert "rock 7" in first.explanation
+    assert dmin >= psf.d_safe_m * 0.95
+    for xx, r in hist:
+        if r.fallback != "none":
+            assert not np.allclose(r.u0, [1.0, 0, 0])
+            tail = [c for c in r.candidates if c[0] == "plan_tail"]
+            assert not tail or max(c[2] for c in r.candidates) >= max(c[2] for c in tail)
+
+
+def test_covariance_circle_over_the_own_ship_returns_an_input(psf):
+    """A tracked vessel 3 m away with σ = 2 m: its inflated circle covers the own ship."""
+    psf.reset()
+    N = psf.config.N
+    mover = MovingObstacles.constant_velocity([[3.0, 0.0]], [[0.0, 0.1]], [0.6], N=N,
+                                              dt_s=psf.config.dt_s,
+                                              covariances=[np.eye(2) * 4.0], ids=[2])
+    res = psf.filter([0, 0, 0, 0.2, 0, 0], FULL_AHEAD, mover, t_s=0.0)
+    assert res.recovery and "track 2" in res.explanation and "recovering" in res.explanation
+    assert np.all(np.isfinite(res.u0)) and not np.allclose(res.u0, FULL_AHEAD)
+
+
+def test_recovery_from_inside_d_safe_turns_away(psf):
+    """At rest 0.8 m from a rock (d_safe 1.255 m): the ship gets out, it is not frozen."""
+    psf.reset()
+    x = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    rock = CircleObstacles([[3.8, 0.0]], [3.0])  # edge 0.8 m ahead
+    hist, x_end = _run(psf, x, FULL_AHEAD, rock, 120)
+    d = [np.hypot(xx[0] - 3.8, xx[1]) - 3.0 for xx, _ in hist]
+    assert hist[0][1].recovery
+    # never much closer than where it started (the turn on the spot drifts a few cm)
+    assert min(d) >= 0.8 - 0.05 * psf.d_safe_m
+    assert np.hypot(x_end[0] - 3.8, x_end[1]) - 3.0 >= psf.d_safe_m  # left the violated set
+
+
+def test_explanation_names_track_bearing_cpa_and_change(psf):
+    psf.reset()
+    x = np.array([0.0, 0.0, 0.0, 0.3, 0.0, 0.0])
+    N = psf.config.N
+    # a vessel on the starboard bow crossing the own ship's track 3.5 m ahead in 20 s
+    mover = MovingObstacles.constant_velocity([[3.5, 6.0]], [[0.0, -0.3]], [0.6], N=N,
+                                              dt_s=psf.config.dt_s, ids=[2])
+    res = psf.filter(x, FULL_AHEAD, mover, t_s=0.0)
+    assert res.intervened
+    e = res.explanation
+    assert "track 2 on the starboard bow" in e and re.search(r"CPA [\d.]+ m in \d+ s", e)
+    assert "thrust" in e or "turning" in e
+    assert res.active and all(a.time_s == pytest.approx(a.stage * psf.config.dt_s)
+                              for a in res.active)
+    # the critical circle is the vessel's *predicted* position where it binds
+    if res.critical:
+        c = np.array(res.critical[0][:2])
+        assert np.linalg.norm(c - [3.5, 6.0]) > 0.5
+
+
+def test_no_intervention_has_no_active_constraints_and_says_so(psf):
+    psf.reset()
+    res = psf.filter([0, 0, 0, 0.3, 0, 0], [1.0, 0, 0.05],
+                     [CircleObstacles([[60.0, 0.0]], [2.0]),
+                      CoastSegments([[0.0, 40.0, 80.0, 40.0]])], t_s=0.0)
+    assert not res.intervened and res.active == ()
+    assert res.explanation.startswith("no intervention; nearest:")
+
+
+def test_u_L_out_of_range_is_clipped_with_a_note_and_intervened_uses_the_range(psf):
+    psf.reset()
+    res = psf.filter([0, 0, 0, 0.3, 0, 0], [3.0, 0, 0.0], None, t_s=0.0)
+    assert "clipped" in res.explanation and res.u0[0] == pytest.approx(2.0)
+    assert not res.intervened  # clipping is not an intervention; δu = 1 N is reported
+    assert res.delta_u[0] == pytest.approx(1.0)
+    # 1 % of the yaw range (0.3 Nm) is 0.003 Nm: a 0.002 Nm change is not an intervention
+    from dataclasses import replace
+    assert not replace(res, u0=res.u0 + [0, 0, 0.002], u_L=res.u_L).intervened
+    assert replace(res, u0=res.u0 + [0, 0, 0.004]).intervened
+
+
+def test_full_scale_open_water_passes_and_short_horizons_are_refused():
+    p = cybership2_full_scale()
+    psf = SafetyFilter(p, config=PsfConfig(backend="casadi-ipopt"))
+    assert psf.config.dt_s == pytest.approx(0.5 * math.sqrt(70.0))
+    x = np.array([0.0, 0.0, 0.0, 4.0, 0.0, 0.0])
+    u_cruise = np.array([0.8 * p.actuators.tau_max[0], 0.0, 0.0])
+    for k in range(5):
+        res = psf.filter(x, u_cruise, None, t_s=k * psf.config.dt_s)
+        assert res.fallback == "none" and not res.intervened, res.explanation
+        x = psf.rollout(x, res.u_pred)[1]
+    with pytest.raises(ConfigError, match="shorter than the braking time"):
+        SafetyFilter(p, config=PsfConfig(dt_s=0.5, backend="casadi-ipopt"))
+
+
+def test_astern_gives_a_stopped_ship_an_escape():
+    """Stopped, a vessel crossing straight at the own ship: the astern-capable hull backs
+    off; the filter offers astern candidates and uses negative surge thrust."""
+    fwd = cybership2_full_scale()
+    ast = with_astern(fwd)
+    assert ast.actuators.tau_min[0] == pytest.approx(-0.6 * fwd.actuators.tau_max[0])
+    psf = SafetyFilter(ast, config=PsfConfig(backend="casadi-ipopt"))
+    N, dt = psf.config.N, psf.config.dt_s
+    L = ast.length
+    x = np.zeros(6)
+    v = np.array([0.0, -4.0])
+    p0 = np.array([0.5 * L, 4.0 * 60.0])  # passes 0.5 L ahead of the own origin in 60 s
+    hist = []
+    for k in range(30):
+        t = k * dt
+        mover = MovingObstacles.constant_velocity([p0 + t * v], [v], [0.5 * L], N=N,
+                                                  dt_s=dt, ids=[5])
+        r = psf.filter(x, np.zeros(3), mover, t_s=t)
+        hist.append((x.copy(), r))
+        x = psf.rollout(x, r.u_pred)[1]
+    assert any(r.u0[0] < 0 for _, r in hist)
+    d = min(np.linalg.norm(p0 + k * dt * v - xx[:2]) - 0.5 * L
+            for k, (xx, _) in enumerate(hist))
+    assert d >= psf.d_safe_m * 0.95
+
+
+def test_auto_backend_falls_back_to_ipopt_when_acados_cannot_build(monkeypatch):
+    """No gcc/make: acados cannot build; 'auto' warns once, says why, and uses IPOPT."""
+    import asvtwin.control.psf as psf_mod
+    from asvtwin.errors import SolverError
+
+    real = psf_mod.make_backend
+
+    def fake(name, spec, **opts):
+        if name == "acados":
+            raise SolverError("building the acados solver failed: make: not found")
+        return real(name, spec, **opts)
+
+    monkeypatch.setattr(psf_mod, "make_backend", fake)
+    monkeypatch.setattr(psf_mod, "available_backends", lambda: ["acados", "casadi-ipopt"])
+    from asvtwin.vessel import cybership2
+
+    with pytest.warns(RuntimeWarning, match="make: not found.*casadi-ipopt.*gcc and make"):
+        f = SafetyFilter(cybership2(), config=PsfConfig(N=40))
+    assert f.backend.name == "casadi-ipopt"
+    with pytest.raises(SolverError):  # an explicit choice is not silently replaced
+        SafetyFilter(cybership2(), config=PsfConfig(N=40, backend="acados"))
