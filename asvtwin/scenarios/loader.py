@@ -52,6 +52,7 @@ __all__ = [
     "DEFAULT_SCENE",
     "check_geometry",
     "default_scenario",
+    "file_problems",
     "geometry_problems",
     "library_names",
     "library_path",
@@ -392,10 +393,29 @@ def _target_problems(
                 )
 
 
-def check_geometry(scenario: Scenario, scene: Scene | None = None, *, label: str = "<scenario>",
-                   root: Any = None) -> None:
-    """Raise :class:`ScenarioError` listing every :func:`geometry_problems` entry."""
-    problems = geometry_problems(scenario, scene)
+def file_problems(scenario: Scenario) -> list[tuple[Loc, str]]:
+    """Every file the scenario names (scene, AIS log, forecast, replayed logs) that is not a
+    readable file. Relative paths count from the working directory (the loader has already
+    made them absolute from the scenario's folder)."""
+    out: list[tuple[Loc, str]] = []
+
+    def need(path: str | None, loc: Loc) -> None:
+        if path and not Path(path).is_file():
+            out.append((loc, f"no such file: {path}"))
+
+    if scenario.scene != DEFAULT_SCENE:
+        need(scenario.scene, ("scene",))
+    if scenario.ais.mode == "file":
+        need(scenario.ais.path, ("ais", "path"))
+    if scenario.weather.mode == "file":
+        need(scenario.weather.path, ("weather", "path"))
+    for i, t in enumerate(scenario.targets):
+        if isinstance(t.behaviour, AisReplay):
+            need(t.behaviour.file, ("targets", i, "behaviour", "file"))
+    return out
+
+
+def _raise_problems(problems: list[tuple[Loc, str]], label: str, root: Any) -> None:
     if not problems:
         return
     lines = []
@@ -407,6 +427,12 @@ def check_geometry(scenario: Scenario, scene: Scene | None = None, *, label: str
     if len(lines) == 1:
         raise ScenarioError(lines[0])
     raise ScenarioError(f"{label}: {len(lines)} problems:\n  " + "\n  ".join(lines))
+
+
+def check_geometry(scenario: Scenario, scene: Scene | None = None, *, label: str = "<scenario>",
+                   root: Any = None) -> None:
+    """Raise :class:`ScenarioError` listing every :func:`geometry_problems` entry."""
+    _raise_problems(geometry_problems(scenario, scene), label, root)
 
 
 # --------------------------------------------------------------------------- public API
@@ -445,6 +471,7 @@ def parse_scenario(
         scenario = Scenario.model_validate(doc)
     except ValidationError as exc:
         raise _validation_error(exc, root, source) from exc
+    _raise_problems(file_problems(scenario), source, root)
     if check_scene:
         check_geometry(scenario, resolve_scene(scenario), label=source, root=root)
     return scenario

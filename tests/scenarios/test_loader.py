@@ -178,3 +178,16 @@ def test_default_scenario_is_the_embedded_default():
     assert isinstance(s, Scenario)
     assert s.scene == "trondheim" and s.ais.mode == "synthetic" and s.weather.mode == "fixture"
     assert s.own_ship.vessel == "cybership2_full_scale" and s.own_ship.controller == "los_psf"
+
+
+def test_missing_files_are_named_with_their_line(tmp_path):
+    f = tmp_path / "s.yaml"
+    f.write_text(BASE + "ais: {mode: file, path: missing.nmea}\n"
+                 "weather: {mode: file, path: forecast.json}\n")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(f)
+    msg = str(info.value)
+    lines = f.read_text().splitlines()
+    ais_line = next(i for i, t in enumerate(lines, 1) if t.startswith("ais:"))
+    assert f"s.yaml:{ais_line}: field 'ais.path': no such file: {tmp_path / 'missing.nmea'}" in msg
+    assert "field 'weather.path': no such file" in msg
