@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from asvtwin.sensors.chart import perturb_chart
 from asvtwin.sensors.hull import HULL_SHAPES, hull_polygons, hull_segments, target_poses
 from asvtwin.sensors.lidar import HIT_COAST, HIT_NONE, Lidar, LidarConfig, LidarScan
 
@@ -14,5 +15,6 @@ __all__ = [
     "LidarScan",
     "hull_polygons",
     "hull_segments",
+    "perturb_chart",
     "target_poses",
 ]

@@ -48,6 +48,21 @@ class TrackerConfig:
         Two tracks whose positions and velocities are this close in χ² terms ...
     merge_after : int
         ... for this many ticks in a row are merged (duplicates of one vessel).
+    identity_gate_probability : float
+        χ² gate of a LiDAR cluster against the AIS-only estimate of an MMSI-tied track:
+        outside it the cluster cannot update that track (the AIS identity is evidence).
+    identity_margin : float
+        An untied AIS report ties its MMSI to a track only if the next-best track's
+        squared Mahalanobis distance is larger by at least this [-] (a likelihood ratio
+        of e^(margin/2)); ambiguous reports wait for the next one.
+    chart_error_m : float
+        Bound of the chart's error [m]: LiDAR clusters with a return within this of the
+        charted shore (or on charted land) do not start tracks (0 disables).
+    course_min_speed_m_s : float
+        A track this fast lends its course as the hull axis to the LiDAR measurement
+        (hull-centre model) [m/s] ...
+    course_max_std_rad : float
+        ... when the course's standard deviation is below this [rad].
     cluster, lidar, ais : ClusterConfig, LidarModel, AisModel
         Segmentation and measurement models.
     """
@@ -67,8 +82,13 @@ class TrackerConfig:
     ais_reseed_after: int = 3
     merge_probability: float = 0.99
     merge_after: int = 3
+    identity_gate_probability: float = 0.9999
+    identity_margin: float = 6.0
+    chart_error_m: float = 10.0
+    course_min_speed_m_s: float = 0.5
+    course_max_std_rad: float = float(np.deg2rad(20.0))
     cluster: ClusterConfig = field(default_factory=ClusterConfig)
-    lidar: LidarModel = field(default_factory=LidarModel)
+    lidar: LidarModel = field(default_factory=lambda: LidarModel(depth_persistence=20.0))
     ais: AisModel = field(default_factory=AisModel)
 
     def __post_init__(self) -> None:
@@ -78,10 +98,14 @@ class TrackerConfig:
             raise ParameterError(
                 f"TrackerConfig needs 1 <= confirm_m <= confirm_n <= 30, actually: m={self.confirm_m}, n={self.confirm_n}")
         for name in ("q", "max_coast_s", "max_coast_ais_s", "max_position_std_m", "init_velocity_std_m_s",
-                     "min_separation_m", "fusion_window_s"):
+                     "min_separation_m", "fusion_window_s", "course_min_speed_m_s", "course_max_std_rad",
+                     "identity_margin", "chart_error_m"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0.0):
                 raise ParameterError(f"TrackerConfig.{name} must be finite and >= 0, actually: {v!r}")
+        if not 0.0 < self.identity_gate_probability < 1.0:
+            raise ParameterError(f"TrackerConfig.identity_gate_probability must be in (0, 1), "
+                                 f"actually: {self.identity_gate_probability!r}")
         if not 0.0 < self.merge_probability < 1.0 or self.merge_after < 1:
             raise ParameterError(f"TrackerConfig needs merge_probability in (0, 1) and merge_after >= 1, "
                                  f"actually: {self.merge_probability!r}, {self.merge_after!r}")

@@ -40,11 +40,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from asvtwin.errors import ParameterError, StateError
 from asvtwin.tracking.clustering import Clusters
 from asvtwin.tracking.ellipse import _C1, EllipseFits, _method_code
+from asvtwin.tracking.hull_model import hull_box_kernel
 from asvtwin.tracking.measurement_kernels import (
     ais_model_kernel,
     lidar_model_kernel,
@@ -58,11 +59,16 @@ __all__ = [
     "AisModel",
     "LidarMeasurements",
     "LidarModel",
+    "CENTRE_MODELS",
     "ais_measurements",
+    "hull_centres",
     "lidar_measurements",
 ]
 
 _F8 = NDArray[np.float64]
+
+#: Centre measurement models of :class:`LidarModel`.
+CENTRE_MODELS = ("hull_box", "ellipse")
 
 
 @dataclass(frozen=True)
@@ -141,6 +147,35 @@ class LidarModel:
         Fits with a larger semi-major axis are implausible for a vessel [m].
     method : {"halir_flusser", "mlr"}
         The ellipse fit.
+    centre : {"hull_box", "ellipse"}
+        Which centre is the measurement: ``"hull_box"`` (default) models what the LiDAR
+        sees of a hull (:mod:`asvtwin.tracking.hull_model`: the near side's offset to the
+        centre from the visible extents and the aspect, the unseen depth bounded by the
+        hull's proportions); ``"ellipse"`` is the paper's fitted-ellipse centre with the
+        line-of-sight inflation above (biased towards the sensor: docs/tracking.md).
+    angular_step_rad : float
+        The LiDAR's angular step [rad]; 0 estimates it from each cluster (mean spacing).
+    length_beam_ratio : tuple of float
+        ``(ρ_min, ρ_max)``: range of hull length over beam [-] that bounds the unseen depth.
+    tip_gap_rays : float
+        Sampling gap at the near corner or bow tip, in ray spacings [-].
+    gap_factor : float
+        Safety factor on the sampling gap along a grazing face [-].
+    bow_taper : float
+        Fraction of the length taken by a tapering bow [-].
+    taper_angles_rad : tuple of float
+        Off-axis angles below / above which the bow's V is fully hidden / fully seen [rad].
+    orientation_std_rad : float
+        Orientation uncertainty of the rectangle fitted when the heading is unknown [rad].
+    heading_floor_rad : float
+        Floor of the heading's standard deviation when taken from a track's course
+        (heading differs from course by the drift angle) [rad].
+    centre_floor_m : float
+        Isotropic floor of the centre's standard deviation [m].
+    depth_persistence : float
+        Scale of the unseen-depth variance, >= 1 [-]: that error repeats from scan to
+        scan, so a filter fed every scan must see it as this many scans' worth (1: the
+        single-scan covariance).
     """
 
     range_std_m: float = 0.05
@@ -155,11 +190,39 @@ class LidarModel:
     default_half_depth_m: float = 8.0
     max_semi_axis_m: float = 200.0
     method: str = "halir_flusser"
+    centre: str = "hull_box"
+    angular_step_rad: float = 0.0
+    length_beam_ratio: tuple[float, float] = (2.5, 8.0)
+    tip_gap_rays: float = 2.5
+    gap_factor: float = 1.5
+    bow_taper: float = 0.2
+    taper_angles_rad: tuple[float, float] = (float(np.deg2rad(17.0)), float(np.deg2rad(45.0)))
+    orientation_std_rad: float = float(np.deg2rad(5.0))
+    heading_floor_rad: float = float(np.deg2rad(3.0))
+    centre_floor_m: float = 0.3
+    depth_persistence: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("range_std_m", "bearing_std_rad", "coverage_gain", "depth_gain", "end_gain", "min_coverage_rad",
-                     "needle_ratio", "needle_depth_gain"):
+                     "needle_ratio", "needle_depth_gain", "angular_step_rad", "tip_gap_rays", "orientation_std_rad",
+                     "heading_floor_rad", "centre_floor_m"):
             _positive("LidarModel", name, getattr(self, name), lo_ok=True)
+        _positive("LidarModel", "gap_factor", self.gap_factor)
+        if not (np.isfinite(self.depth_persistence) and self.depth_persistence >= 1.0):
+            raise ParameterError(f"LidarModel.depth_persistence must be finite and >= 1, "
+                                 f"actually: {self.depth_persistence!r}")
+        if self.centre not in CENTRE_MODELS:
+            raise ParameterError(f"LidarModel.centre must be one of {CENTRE_MODELS}, actually: {self.centre!r}")
+        lo, hi = self.length_beam_ratio
+        if not (np.isfinite(hi) and 1.0 <= lo <= hi):
+            raise ParameterError(f"LidarModel.length_beam_ratio must be (lo, hi) with 1 <= lo <= hi < inf, "
+                                 f"actually: {self.length_beam_ratio!r}")
+        if not 0.0 <= self.bow_taper < 1.0:
+            raise ParameterError(f"LidarModel.bow_taper must be in [0, 1), actually: {self.bow_taper!r}")
+        a0, a1 = self.taper_angles_rad
+        if not 0.0 <= a0 <= a1 <= 0.5 * np.pi:
+            raise ParameterError(f"LidarModel.taper_angles_rad must be (lo, hi) with 0 <= lo <= hi <= π/2, "
+                                 f"actually: {self.taper_angles_rad!r}")
         for name in ("fit_floor_m", "default_half_depth_m", "max_semi_axis_m"):
             _positive("LidarModel", name, getattr(self, name))
 
@@ -177,16 +240,65 @@ class LidarMeasurements:
     fits : EllipseFits
         The ellipse fits of the clusters.
     used_fit : ndarray of bool, shape (k,)
-        True where the fit's centre was used, False where the centroid was.
+        True where the ellipse fit is plausible (with ``centre="ellipse"``: its centre was
+        used, else the centroid was).
+    extent_m : ndarray, shape (k, 2)
+        With ``centre="hull_box"``: visible extents ``[along, across]`` the hull axis [m]
+        (NaN otherwise).
     """
 
     z: _F8
     R: _F8
     fits: EllipseFits
     used_fit: NDArray[np.bool_]
+    extent_m: _F8 | None = None
 
     def __len__(self) -> int:
         return int(self.z.shape[0])
+
+
+def _hull_prm(mdl: LidarModel) -> _F8:
+    return np.array([mdl.range_std_m, mdl.bearing_std_rad, mdl.angular_step_rad, mdl.length_beam_ratio[0],
+                     mdl.length_beam_ratio[1], mdl.tip_gap_rays, mdl.orientation_std_rad, mdl.centre_floor_m,
+                     mdl.gap_factor, mdl.bow_taper, mdl.taper_angles_rad[0], mdl.taper_angles_rad[1],
+                     mdl.depth_persistence])
+
+
+def hull_centres(clusters: Clusters, heading_rad: ArrayLike, heading_std_rad: ArrayLike,
+                 model: LidarModel | None = None, *, only_known: bool = False) -> tuple[_F8, _F8, _F8]:
+    """Hull-centre measurements of clusters whose hull axis is known (or NaN: unknown).
+
+    Parameters
+    ----------
+    clusters : Clusters
+        Clusters of one scan with the sensor position ``origin_ned``.
+    heading_rad, heading_std_rad : array_like, shape (k,)
+        Hull axis of each cluster from north, clockwise [rad] (NaN: unknown) and its
+        standard deviation [rad].
+    model : LidarModel, optional
+    only_known : bool
+        Skip clusters without a heading (their rows are NaN).
+
+    Returns
+    -------
+    z : ndarray, shape (k, 2)
+        Centres ``[north_m, east_m]`` [m].
+    R : ndarray, shape (k, 2, 2)
+        Covariances [m²].
+    extent : ndarray, shape (k, 2)
+        Visible extents along and across the hull axis [m].
+    """
+    mdl = model or LidarModel()
+    k = len(clusters)
+    h = np.ascontiguousarray(np.broadcast_to(np.asarray(heading_rad, np.float64), (k,)))
+    hs = np.maximum(np.ascontiguousarray(np.broadcast_to(np.asarray(heading_std_rad, np.float64), (k,))),
+                    mdl.heading_floor_rad)
+    origin = np.asarray(clusters.origin_ned, dtype=np.float64).reshape(2)
+    if not np.isfinite(origin).all():
+        raise StateError("hull-centre measurements need the sensor position (Clusters.origin_ned), actually: NaN")
+    points = np.ascontiguousarray(clusters.points, dtype=np.float64).reshape(-1, 2)
+    offsets = np.ascontiguousarray(clusters.offsets, dtype=np.int64)
+    return hull_box_kernel(points, offsets, origin, h, hs, _hull_prm(mdl), only_known)
 
 
 def lidar_measurements(clusters: Clusters, model: LidarModel | None = None) -> LidarMeasurements:
@@ -196,9 +308,11 @@ def lidar_measurements(clusters: Clusters, model: LidarModel | None = None) -> L
     ----------
     clusters : Clusters
         Clusters of one scan (``origin_ned`` is the sensor position; when NaN the
-        covariance is isotropic).
+        covariance is isotropic and the ``"ellipse"`` centre is used).
     model : LidarModel, optional
-        Noise settings.
+        Noise settings. With ``centre="hull_box"`` the hull axis is unknown here (the
+        tracker re-measures associated clusters with their track's course,
+        :func:`hull_centres`).
 
     Returns
     -------
@@ -217,7 +331,12 @@ def lidar_measurements(clusters: Clusters, model: LidarModel | None = None) -> L
     if not np.isfinite(origin).all():  # no sensor position: a far-away one, i.e. ~isotropic
         origin = z.mean(axis=0) - np.array([1.0e4, 0.0]) if len(z) else np.zeros(2)
         R = los_covariance(z, origin, var_los, cross0, mdl.bearing_std_rad)
-    return LidarMeasurements(z=z, R=R, fits=EllipseFits.from_array(out), used_fit=use)
+        return LidarMeasurements(z=z, R=R, fits=EllipseFits.from_array(out), used_fit=use)
+    ext = np.full((len(z), 2), np.nan)
+    if mdl.centre == "hull_box" and len(z):
+        k = len(z)
+        z, R, ext = hull_box_kernel(points, offsets, origin, np.full(k, np.nan), np.zeros(k), _hull_prm(mdl), False)
+    return LidarMeasurements(z=z, R=R, fits=EllipseFits.from_array(out), used_fit=use, extent_m=ext)
 
 
 @dataclass(frozen=True)

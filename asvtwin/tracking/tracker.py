@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from asvtwin.geo.land import LandMask
 from asvtwin.sensors.lidar import LidarScan
-from asvtwin.tracking.association import gate_threshold, gated_costs, gnn_assign
+from asvtwin.tracking.association import FORBIDDEN, gate_threshold, gated_costs, gnn_assign
 from asvtwin.tracking.clustering import Clusters, cluster_scan
 from asvtwin.tracking.config import TrackerConfig
 from asvtwin.tracking.fusion import (
@@ -49,6 +49,7 @@ from asvtwin.tracking.measurement import (
     AisMeasurement,
     AisMeasurementBatch,
     ais_measurements,
+    hull_centres,
     lidar_measurements,
 )
 from asvtwin.tracking.snapshot import TrackSnapshot
@@ -96,6 +97,7 @@ class Tracker:
         self._gL = gate_threshold(self.config.gate_probability, 2)
         self._gA_tied = gate_threshold(self.config.tied_gate_probability, 2)
         self._gM = gate_threshold(self.config.merge_probability, 2)
+        self._gA_id = gate_threshold(self.config.identity_gate_probability, 2)
         self._pairs: dict[tuple[int, int], int] = {}
         self._t: float | None = None
         self._next_id = 1
@@ -105,8 +107,12 @@ class Tracker:
             "small_clusters", "fit_fallbacks", "lidar_unassociated", "init_suppressed",
             "ais_reports", "ais_rejected", "ais_stale", "ais_gated_out", "ais_reseeded",
             "tracks_created", "tracks_confirmed", "tracks_deleted", "tracks_merged", "deleted_on_land",
-            "nan_guard"), 0)
+            "nan_guard", "lidar_with_course", "lidar_vetoed_by_ais", "ais_ambiguous", "init_coast_band",
+            "ais_recovered"), 0)
         self._warned: set[str] = set()
+        #: Position NIS (2 dof) of this tick's LiDAR updates and tied AIS updates:
+        #: ``νᵀ (P + R)⁻¹ ν`` before the update (diagnostics: χ²₂ when consistent).
+        self.last_nis: dict[str, NDArray[np.float64]] = {"lidar": np.empty(0), "ais": np.empty(0)}
         self._last = self._snapshot(0.0)
 
     # ------------------------------------------------------------------ helpers
@@ -175,6 +181,7 @@ class Tracker:
         dt = 0.0 if self._t is None else t - self._t
         self._t = t
         self._counts["ticks"] += 1
+        self.last_nis = {"lidar": np.empty(0), "ais": np.empty(0)}
         n = a["x"].shape[0]
 
         # 1. predictor
@@ -199,13 +206,19 @@ class Tracker:
             if len(cl):
                 m = lidar_measurements(cl, cfg.lidar)
                 self._count("fit_fallbacks", int((~m.used_fit).sum()))
-                rows, cols = gnn_assign(gated_costs(a["x"][:, :2], a["P"][:, :2, :2], m.z, m.R, self._gL)[0])
+                cost = gated_costs(a["x"][:, :2], a["P"][:, :2, :2], m.z, m.R, self._gL)[0]
+                self._ais_identity_gate(t, cost, m.z, m.R)
+                rows, cols = gnn_assign(cost)
                 a["gotL"][rows] = True
-                zL[rows], RL[rows] = m.z[cols], m.R[cols]
+                zm, Rm = self._remeasure_with_course(cl, m.z, m.R, rows, cols)
+                zL[rows], RL[rows] = zm[cols], Rm[cols]
+                self.last_nis["lidar"] = position_mahalanobis(zL[rows] - a["x"][rows, :2], a["P"][rows, :2, :2],
+                                                              RL[rows])
                 good = m.used_fit[cols] & (m.fits.arc_coverage_rad[cols] >= 0.5 * np.pi)
                 fit_axes[rows[good]] = m.fits.semi_axes[cols[good]]
                 free = np.ones(len(m), bool)
                 free[cols] = False
+                free &= ~self._in_coast_band(cl, free)
                 new_z, new_R = m.z[free], m.R[free]
 
         # 3. AIS: tied by MMSI, else GNN with untied tracks, else new tracks
@@ -228,6 +241,8 @@ class Tracker:
                 ti = tied[tj]
                 d2 = position_mahalanobis(am.z[tj, :2] - a["x"][ti, :2], a["P"][ti, :2, :2], am.R[tj, :2, :2])
                 ok = d2 <= self._gA_tied
+                self._recover_identity(ti, tj, ok, am.z, am.R)
+                self.last_nis["ais"] = d2[ok]
                 self._count("ais_gated_out", int((~ok).sum()), "AIS reports far from their own track rejected")
                 a["gotA"][ti[ok]] = True
                 zA[ti[ok]], RA[ti[ok]] = am.z[tj[ok]], am.R[tj[ok]]
@@ -241,13 +256,23 @@ class Tracker:
             uj = np.flatnonzero(tied < 0)
             if uj.size:
                 ui = np.flatnonzero(a["mmsi"] < 0)
-                cost = gated_costs(a["x"][ui, :2], a["P"][ui, :2, :2], am.z[uj, :2], am.R[uj, :2, :2], self._gL)[0]
+                cost, d2u = gated_costs(a["x"][ui, :2], a["P"][ui, :2, :2], am.z[uj, :2], am.R[uj, :2, :2], self._gL)
+                # an identity is given only when one track explains the report clearly
+                # better than any other (likelihood ratio >= e^(Δ/2)): a wrong tie in a close
+                # pair would carry the MMSI to the wrong vessel
+                ambiguous = np.zeros(uj.size, bool)
+                if ui.size >= 2:
+                    d2s = np.sort(np.where(cost < FORBIDDEN, d2u, np.inf), axis=0)
+                    with np.errstate(invalid="ignore"):  # inf - inf where no track is in the gate
+                        ambiguous = np.isfinite(d2s[1]) & (d2s[1] - d2s[0] < cfg.identity_margin)
+                    cost[:, ambiguous] = FORBIDDEN
+                    self._count("ais_ambiguous", int(ambiguous.sum()))
                 rows, cols = gnn_assign(cost)
                 r, c = ui[rows], uj[cols]
                 a["gotA"][r] = True
                 a["mmsi"][r] = am.mmsi[c]
                 zA[r], RA[r] = am.z[c], am.R[c]
-                free = np.ones(uj.size, bool)
+                free = ~ambiguous
                 free[cols] = False
                 ais_new[uj[free]] = True
 
@@ -284,6 +309,90 @@ class Tracker:
         return self._last
 
     # ------------------------------------------------------------------ pieces
+    def _recover_identity(self, ti: NDArray[np.int64], tj: NDArray[np.int64], ok: NDArray[np.bool_], z: _F8,
+                          R: _F8) -> None:
+        """A tied report outside its track's gate but consistent with the track's AIS-only
+        filter means LiDAR dragged the track onto a neighbour: the track (id and MMSI) goes
+        back to the AIS-only estimate and drops its LiDAR filter, instead of losing the tie
+        (``ok`` is set for those reports)."""
+        a = self._a
+        bad = np.flatnonzero(~ok)
+        if bad.size == 0:
+            return
+        r, j = ti[bad], tj[bad]
+        dA = position_mahalanobis(z[j, :2] - a["xA"][r, :2], np.ascontiguousarray(a["PA"][r, :2, :2]), R[j, :2, :2])
+        rec = a["hasA"][r] & (dA <= self._gA_tied)
+        if not rec.any():
+            return
+        rr = r[rec]
+        a["x"][rr], a["P"][rr] = a["xA"][rr], a["PA"][rr]
+        a["hasL"][rr] = False
+        a["gotL"][rr] = False
+        a["axes"][rr] = np.nan
+        ok[bad[rec]] = True
+        self._count("ais_recovered", int(rr.size))
+
+    def _in_coast_band(self, cl: Clusters, which: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        """Clusters (among ``which``) with a return within ``chart_error_m`` of the charted
+        shore or on charted land: they may update tracks but never start one. A chart off
+        by a few metres leaves coast returns outside the clustering's coast margin; those
+        must not become vessels (docs/tracking.md, near the coast)."""
+        out = np.zeros(len(cl), bool)
+        band = self.config.chart_error_m
+        if self.land is None or band <= 0.0 or not which.any():
+            return out
+        owner = np.repeat(np.arange(len(cl)), cl.sizes)
+        sel = which[owner]
+        near = self.land.signed_distance(cl.points[sel]) < band
+        out[owner[sel][near]] = True
+        self._count("init_coast_band", int(out.sum()))
+        return out
+
+    def _ais_identity_gate(self, t: float, cost: _F8, z: _F8, R: _F8) -> None:
+        """The AIS identity is evidence: a track tied to an MMSI takes a LiDAR cluster only
+        if the cluster is also consistent with the track's own AIS-only estimate (its
+        reports aged to ``t``), so LiDAR alone cannot drag an MMSI onto a neighbour."""
+        a, cfg = self._a, self.config
+        tied = np.flatnonzero((a["mmsi"] >= 0) & a["hasA"] & (t - a["tA"] <= cfg.max_coast_ais_s))
+        if tied.size == 0 or cost.shape[1] == 0:
+            return
+        ti, cj = np.nonzero(cost[tied] < FORBIDDEN)
+        if ti.size == 0:
+            return
+        ti = tied[ti]
+        d2 = position_mahalanobis(z[cj] - a["xA"][ti, :2], np.ascontiguousarray(a["PA"][ti, :2, :2]), R[cj])
+        bad = d2 > self._gA_id
+        if bad.any():
+            cost[ti[bad], cj[bad]] = FORBIDDEN
+            self._count("lidar_vetoed_by_ais", int(bad.sum()))
+
+    def _remeasure_with_course(self, cl: Clusters, z: _F8, R: _F8, rows: NDArray[np.int64],
+                               cols: NDArray[np.int64]) -> tuple[_F8, _F8]:
+        """Hull-centre measurements of associated clusters with their track's course as the
+        hull axis (the aspect is then known: :mod:`asvtwin.tracking.hull_model`)."""
+        cfg = self.config
+        if cfg.lidar.centre != "hull_box" or rows.size == 0:
+            return z, R
+        v = self._a["x"][rows, 2:]
+        Pv = self._a["P"][rows, 2:, 2:]
+        sp2 = (v * v).sum(axis=1)
+        # var ψ = (v_e² P_nn − 2 v_n v_e P_ne + v_n² P_ee) / |v|⁴ (course of the CV velocity)
+        var = (v[:, 1] ** 2 * Pv[:, 0, 0] - 2.0 * v[:, 0] * v[:, 1] * Pv[:, 0, 1] + v[:, 0] ** 2 * Pv[:, 1, 1])
+        var = var / np.maximum(sp2, 1e-12) ** 2
+        ok = (sp2 >= cfg.course_min_speed_m_s ** 2) & (var <= cfg.course_max_std_rad ** 2)
+        if not ok.any():
+            return z, R
+        k = len(z)
+        hd, hs = np.full(k, np.nan), np.zeros(k)
+        hd[cols[ok]] = np.arctan2(v[ok, 1], v[ok, 0])
+        hs[cols[ok]] = np.sqrt(var[ok])
+        z2, R2, _ = hull_centres(cl, hd, hs, cfg.lidar, only_known=True)
+        sel = cols[ok]
+        z, R = z.copy(), R.copy()
+        z[sel], R[sel] = z2[sel], R2[sel]
+        self._count("lidar_with_course", int(sel.size))
+        return z, R
+
     def _update_sensor_filters(self, zL: _F8, RL: _F8, zA: _F8, RA: _F8) -> None:
         a, t = self._a, self._t
         for got, has, xk, Pk, Gk, tk, z, R, H in (

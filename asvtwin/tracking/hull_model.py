@@ -1,0 +1,224 @@
+r"""What a LiDAR sees of a hull: the centre of a vessel from the near side of its outline.
+
+A 2-D LiDAR sees only the faces of a hull that face it, sampled at its angular step. The
+centre of a vessel is therefore *not* the centre of an ellipse fitted to the returns (that
+sits towards the sensor: the unseen half is missing), nor the centroid. This model works
+in the hull frame: ``h`` along the hull axis (the heading, when the track knows it; else
+the orientation of the returns' smallest bounding rectangle), ``n`` across it. A hull
+(rectangle, pointed bow, ellipse) fills the box ``[s_c ± L/2] × [t_c ± B/2]`` in that
+frame, and the returns give the visible extents ``[s_min, s_max] × [t_min, t_max]``:
+
+- the extreme **near** the sensor along each axis is seen up to the sampling gap at a
+  corner or a pointed bow, :math:`G_{near} \sim U[0, \min(\delta, k_{tip} d)]`;
+- the **far** extreme is seen only as the end of a face running away from the sensor,
+  sampled every :math:`\delta = d / \sin\beta` along that face (``d = r Δφ`` the ray
+  spacing at range ``r``, ``β`` the angle between the line of sight and the face), so
+  :math:`G_{far} \sim U[g_{lo}, g_{hi}]` with :math:`g_{hi} = \min(\delta, \text{cap})`;
+- the caps come from what a vessel can be: its length is ``ρ`` beams with
+  :math:`\rho \in [\rho_{min}, \rho_{max}]`, so end-on (only the stern or the bow seen,
+  ``B`` measured) the depth is :math:`L \in [\rho_{min} B, \rho_{max} B]`, and broadside
+  (``L`` measured) it is :math:`B \in [L/\rho_{max}, L/\rho_{min}]`. Without a known
+  heading the axes are ambiguous and both ranges apply (a wide, honest variance).
+
+Per axis the centre is :math:`(x_{near} + x_{far})/2 + \sigma (G_{far} - G_{near})/2` with
+``σ`` pointing away from the sensor, so the measurement is the mean of that and its
+variance :math:`(\operatorname{var} G_{far} + \operatorname{var} G_{near})/4`. Range noise
+goes along the line of sight, bearing noise across it, and the heading's uncertainty moves
+the centre by about :math:`\sigma_\psi \sqrt{L^2 + B^2}/2`. The result is a position
+measurement whose normalised error is close to its 2 degrees of freedom at every aspect
+(tested by aspect sector in ``tests/tracking/test_hull_model.py``; figure in
+docs/tracking.md). This is the rectangle ("L-shape") view of extended-object tracking of
+vehicles (Zhang, Xu, Dolan et al. 2017, "Efficient L-shape fitting for vehicle detection
+using laser scanners"), with the unseen extent bounded by the hull's proportions rather
+than assumed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__: list[str] = []  # kernels; the public API is asvtwin.tracking.measurement.lidar_measurements
+
+_COARSE = 18  # orientation search: 5° steps over 90°, then 1° around the best
+_FINE = 11
+
+
+@njit(cache=True)
+def _box_area(pts, s, n, c, sn):  # type: ignore[no-untyped-def]
+    s0 = s1 = t0 = t1 = 0.0
+    for j in range(n):
+        a = pts[s + j, 0] * c + pts[s + j, 1] * sn
+        b = -pts[s + j, 0] * sn + pts[s + j, 1] * c
+        if j == 0:
+            s0 = s1 = a
+            t0 = t1 = b
+        else:
+            s0, s1, t0, t1 = min(s0, a), max(s1, a), min(t0, b), max(t1, b)
+    return (s1 - s0) * (t1 - t0) + 1e-6 * ((s1 - s0) + (t1 - t0))
+
+
+@njit(cache=True)
+def _box_orientation(pts, s, n):  # type: ignore[no-untyped-def]
+    """Direction [rad] of the smallest-area bounding rectangle (mod π/2)."""
+    best, th = np.inf, 0.0
+    for i in range(_COARSE):
+        a = 0.5 * np.pi * i / _COARSE
+        v = _box_area(pts, s, n, np.cos(a), np.sin(a))
+        if v < best:
+            best, th = v, a
+    step = 0.5 * np.pi / _COARSE
+    th0 = th
+    for i in range(_FINE):
+        a = th0 - step + 2.0 * step * i / (_FINE - 1)
+        v = _box_area(pts, s, n, np.cos(a), np.sin(a))
+        if v < best:
+            best, th = v, a
+    return th
+
+
+@njit(cache=True)
+def _axis(near, far, sign, e, g_near, g_far_lo, g_far_hi, kappa):  # type: ignore[no-untyped-def]
+    """Centre coordinate and variance along one hull axis (see the module docstring).
+
+    The far gap (the unseen depth: hull proportions, a hidden bow) stays the same from
+    scan to scan, so its variance is scaled by ``kappa`` (the number of scans over which
+    it is correlated) for a filter that would otherwise average it away; the near gap
+    (sampling at a corner) changes with every scan."""
+    m_far = 0.5 * (g_far_lo + g_far_hi)
+    v_far = (g_far_hi - g_far_lo) ** 2 / 12.0
+    m_near = 0.5 * g_near
+    v_near = g_near * g_near / 12.0
+    c = 0.5 * (near + far) + sign * 0.5 * (m_far - m_near)
+    return c, 0.25 * (kappa * v_far + v_near)
+
+
+@njit(cache=True)
+def hull_box_kernel(points, offsets, origin, heading, heading_std, prm, only_known=False):  # type: ignore[no-untyped-def]
+    """Centres ``z (k, 2)``, covariances ``R (k, 2, 2)`` and box extents ``ext (k, 2)``
+    ``[along, across]`` of all clusters.
+
+    ``heading[i]`` is the hull axis of cluster ``i`` [rad] (NaN: unknown, the box
+    orientation is used and the axes are ambiguous), ``heading_std`` its standard
+    deviation [rad]; with ``only_known`` clusters without a heading are skipped (NaN
+    rows). ``prm`` = [range_std, bearing_std, angular_step (0: from the
+    cluster), rho_min, rho_max, k_tip, orientation_std, floor_std, k_gap, taper,
+    taper_angle_lo, taper_angle_hi, kappa (persistence of the unseen-depth error, scans)].
+    """
+    rs, bs, step, rho_lo, rho_hi, ktip, ostd, floor = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7]
+    kgap, taper, a_lo, a_hi, kappa = prm[8], prm[9], prm[10], prm[11], prm[12]
+    k = offsets.shape[0] - 1
+    z = np.full((k, 2), np.nan)
+    R = np.full((k, 2, 2), np.nan)
+    ext = np.full((k, 2), np.nan)
+    o0, o1 = origin[0], origin[1]
+    for i in range(k):
+        s, n = offsets[i], offsets[i + 1] - offsets[i]
+        if n == 0 or (only_known and not np.isfinite(heading[i])):
+            continue
+        # line of sight to the centroid, range, ray spacing
+        c0 = c1 = 0.0
+        for j in range(n):
+            c0 += points[s + j, 0]
+            c1 += points[s + j, 1]
+        c0 /= n
+        c1 /= n
+        r = np.hypot(c0 - o0, c1 - o1)
+        if r > 1e-9:
+            l0, l1 = (c0 - o0) / r, (c1 - o1) / r
+        else:
+            l0, l1 = 1.0, 0.0
+        if step > 0.0 or n < 2:
+            dphi = step if step > 0.0 else 0.01
+        else:  # mean angular spacing of the returns (dropouts make it conservative)
+            amin, amax = np.inf, -np.inf
+            for j in range(n):
+                a = np.arctan2(-(points[s + j, 0] - o0) * l1 + (points[s + j, 1] - o1) * l0,
+                               (points[s + j, 0] - o0) * l0 + (points[s + j, 1] - o1) * l1)
+                amin, amax = min(amin, a), max(amax, a)
+            dphi = max((amax - amin) / (n - 1), 1e-5)
+        d = r * dphi
+        known = np.isfinite(heading[i])
+        th = heading[i] if known else _box_orientation(points, s, n)
+        ch, sh = np.cos(th), np.sin(th)
+        # visible extents in the hull frame (h = (ch, sh), n = (-sh, ch))
+        s0 = s1 = t0 = t1 = 0.0
+        for j in range(n):
+            a = points[s + j, 0] * ch + points[s + j, 1] * sh
+            b = -points[s + j, 0] * sh + points[s + j, 1] * ch
+            if j == 0:
+                s0 = s1 = a
+                t0 = t1 = b
+            else:
+                s0, s1, t0, t1 = min(s0, a), max(s1, a), min(t0, b), max(t1, b)
+        es, et = s1 - s0, t1 - t0
+        if not known and es < et:  # unknown heading: call the longer visible side the axis
+            th += 0.5 * np.pi
+            ch, sh = np.cos(th), np.sin(th)
+            s0, s1, t0, t1 = t0, t1, -s1, -s0
+            es, et = et, es
+        so = o0 * ch + o1 * sh
+        to = -o0 * sh + o1 * ch
+        big = 1e6
+        sign_h = 1.0 if so < 0.5 * (s0 + s1) else -1.0
+        near_h, far_h = (s0, s1) if sign_h > 0 else (s1, s0)
+        sign_n = 1.0 if to < 0.5 * (t0 + t1) else -1.0
+        near_n, far_n = (t0, t1) if sign_n > 0 else (t1, t0)
+        # a face along h (the flank at t = near_n) is hit at grazing angle sin β ≈ |t_o - near_n| / r,
+        # so its returns are d / sin β apart along h; a face along n (stern, bow) likewise
+        # (made conservative by two heading standard deviations: a grazing face may be
+        # more grazing than the assumed heading says)
+        ps = heading_std[i] if known else ostd
+        gh = abs(to - near_n) / r - 2.0 * ps
+        gn = abs(so - near_h) / r - 2.0 * ps
+        # (no flank faces the sensor when it looks along the hull from within its beam,
+        # no end face when it looks across from within its length)
+        dh = kgap * d / gh if (gh > 1e-9 and not t0 < to < t1) else big
+        dn = kgap * d / gn if (gn > 1e-9 and not s0 < so < s1) else big
+        es_hi = es + min(dh, big)  # what the sampling allows the extents to be
+        et_hi = et + min(dn, big)
+        if known:
+            L_lo, L_hi = rho_lo * et, rho_hi * et_hi  # a hull seen end-on: L from the beam
+            B_lo, B_hi = es / rho_hi, es_hi / rho_lo  # seen broadside: B from the length
+        else:  # either side may be the hull axis: the unseen depth up to ρ_min times the
+            # longer visible side (a flank seen broadside; a stern seen end-on is deeper, and
+            # is measured again once the track has a course)
+            L_lo, L_hi = 0.0, rho_lo * max(es, et)
+            B_lo, B_hi = 0.0, rho_lo * max(es, et)
+        # a tapering bow hides part of itself. Off-axis angle of the sensor seen from the
+        # hull, 0 end-on: below a_lo the bow's V faces are both seen from ahead and hidden
+        # from aft; above a_hi the near V face is seen from aft and the far flank hidden
+        # from ahead (the V shows half the beam); in between either (ρ-dependent)
+        off = np.arctan2(abs(to - 0.5 * (t0 + t1)), abs(so - 0.5 * (s0 + s1)))
+        w_all = 1.0 if off < a_lo else 0.0
+        w_any = 1.0 if off < a_hi else 0.0
+        L_est = max(es, L_lo) / (1.0 - taper)
+        tap_lo, tap_hi, half_lo, half_hi = 0.0, 0.0, 0.0, 0.0
+        if not known:
+            tap_hi, half_hi = taper * L_est, et
+        elif sign_h > 0.0:  # sensor aft, bow away: the bow's tip beyond the shoulders
+            tap_lo, tap_hi = w_all * taper * L_est, w_any * taper * L_est
+        else:  # sensor ahead: the far half of the beam behind the near V face and flank
+            half_lo, half_hi = (1.0 - w_any) * et, (1.0 - w_all) * et
+        # along h
+        hi = min(dh, max(L_hi - es, 0.0))
+        lo = min(max(L_lo - es, 0.0), hi)
+        zs, vs = _axis(near_h, far_h, sign_h, es, min(dh, ktip * d), lo + tap_lo, hi + tap_hi, kappa)
+        L_max = es + hi + tap_hi
+        # along n
+        hi = min(dn, max(B_hi - et, 0.0))
+        lo = min(max(B_lo - et, 0.0), hi)
+        zt, vt = _axis(near_n, far_n, sign_n, et, min(dn, ktip * d), lo + half_lo, hi + half_hi, kappa)
+        B_max = et + hi + half_hi
+        z[i, 0] = zs * ch - zt * sh
+        z[i, 1] = zs * sh + zt * ch
+        ext[i, 0], ext[i, 1] = es, et
+        # R = H diag(vs, vt) Hᵀ + range noise along the line of sight + bearing noise across it
+        #     + heading uncertainty (the box turns about the visible corner) + a floor
+        vpsi = ps * ps * 0.25 * (L_max * L_max + B_max * B_max)
+        iso = floor * floor + vpsi
+        vr, vb = rs * rs, (r * bs) ** 2
+        R[i, 0, 0] = ch * ch * vs + sh * sh * vt + l0 * l0 * vr + l1 * l1 * vb + iso
+        R[i, 1, 1] = sh * sh * vs + ch * ch * vt + l1 * l1 * vr + l0 * l0 * vb + iso
+        R[i, 0, 1] = R[i, 1, 0] = ch * sh * (vs - vt) + l0 * l1 * (vr - vb)
+    return z, R, ext
