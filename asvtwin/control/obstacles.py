@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from asvtwin.checks import check_all_finite
 from asvtwin.errors import StateError
 
 __all__ = [
@@ -43,10 +44,7 @@ _F8 = NDArray[np.float64]
 
 
 def _finite(a: _F8, what: str) -> None:
-    bad = ~np.isfinite(a)
-    if bad.any():
-        idx = tuple(int(i) for i in np.argwhere(bad)[0])
-        raise StateError(f"{what} must be finite, actually entry {idx} is {a[idx]}")
+    check_all_finite(a, what)
 
 
 def _radii(r: ArrayLike, n: int, what: str) -> _F8:
