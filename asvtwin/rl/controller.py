@@ -62,7 +62,7 @@ class RlController:
     >>> ctl = RlController(cybership2_full_scale())
     >>> route = np.array([[0.0, 0.0], [3000.0, 0.0]])
     >>> tau = ctl.act(0.0, np.array([0, 0, 0, 3.0, 0, 0]), route, None)
-    >>> tau.shape, bool(tau[0] >= 0.0), tau[1]
+    >>> tau.shape, bool(tau[0] >= 0.0), float(tau[1])
     ((3,), True, 0.0)
     """
 
