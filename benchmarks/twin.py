@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import resource
 import sys
 import tempfile
@@ -104,7 +103,7 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
         build_s = time.perf_counter() - t_build
         sizes: list[int] = []
         twin.on_snapshot = lambda s, b: sizes.append(len(b))
-        n_warm = int(round(args.warmup / twin.dt_s))
+        n_warm = round(args.warmup / twin.dt_s)
         for _ in range(n_warm):
             twin.step()
         sch = twin.scheduler
@@ -112,7 +111,7 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
         ms0 = {n: sch.stats(n).total_ms for n in names}
         bytes0 = twin.recorder.bytes_written if twin.recorder else 0
         sizes.clear()
-        n_meas = int(round(args.duration / twin.dt_s))
+        n_meas = round(args.duration / twin.dt_s)
         t0 = time.perf_counter()
         for _ in range(n_meas):
             twin.step()
@@ -123,7 +122,7 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
         mem = None
         if args.memory_s > 0:
             rss0 = _rss_mb()
-            for _ in range(int(round(args.memory_s / twin.dt_s))):
+            for _ in range(round(args.memory_s / twin.dt_s)):
                 twin.step()
             mem = _rss_mb() - rss0
         twin.close()

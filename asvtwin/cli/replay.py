@@ -12,6 +12,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 from asvtwin.cli.argtypes import positive_int
 
@@ -49,7 +50,7 @@ def replay(args: argparse.Namespace) -> int:
             return 2
         serve(rec, port=args.port)
         return 0
-    info = {"file": str(rec.path), "scenario": (rec.scenario or {}).get("name"),
+    info: dict[str, Any] = {"file": str(rec.path), "scenario": (rec.scenario or {}).get("name"),
             "seed": rec.seed, "duration_s": rec.duration_s, "truncated": rec.truncated,
             "damage": rec.damage, "summary": rec.summary}
     code = 0

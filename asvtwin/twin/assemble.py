@@ -7,8 +7,6 @@ test can check each part alone. Units and frames as in :mod:`asvtwin.twin.snapsh
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -150,6 +148,5 @@ def _explain(res: FilterResult, critical: NDArray[np.int64], dt_s: float) -> str
         k = int(critical[0])
         return (f"proposal changed: the plan comes within its clearance of an obstacle at "
                 f"stage {k} ({k * dt_s:.0f} s ahead)")
-    kinds = sorted({a.kind for a in res.active}) or ["terminal set"]
-    return "proposal changed to respect " + ", ".join(kinds) + (
-        "" if math.isfinite(res.terminal_margin) else "")
+    kinds: list[str] = sorted({str(a.kind) for a in res.active}) or ["terminal set"]
+    return "proposal changed to respect " + ", ".join(kinds)

@@ -230,7 +230,7 @@ class FilterStage:
         conf = tracks.confirmed()
         if len(conf):
             times = t_s + self.dt_s * np.arange(self.N + 1)
-            pred = predict_tracks(conf.mean, conf.cov, conf.t_s if conf.t_s <= t_s else t_s,
+            pred = predict_tracks(conf.mean, conf.cov, min(conf.t_s, t_s),
                                   times, self.tracker_q)
             pos = pred.positions
             gap = np.min(np.hypot(pos[..., 0] - x[0], pos[..., 1] - x[1]), axis=1)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import fields
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,7 +41,7 @@ _ROLE = {"stand_on": 0, "give_way": 1, "auto": 2}
 
 
 def _stack_gains(gains: list[AutopilotGains]) -> AutopilotGains:
-    vals = {}
+    vals: dict[str, Any] = {}
     for f in fields(AutopilotGains):
         if f.name == "crab_compensation":
             vals[f.name] = gains[0].crab_compensation

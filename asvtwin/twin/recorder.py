@@ -120,7 +120,7 @@ class Recorder:
         else:
             self.path, raw = None, path
         self._stream = _QuotaStream(raw, max_bytes)
-        self._epoch_ns = int(round(epoch_unix_s * 1e9))
+        self._epoch_ns = round(epoch_unix_s * 1e9)
         self.error: str | None = None
         self.messages = 0
         self.closed = False
@@ -170,7 +170,7 @@ class Recorder:
         w = self._writer
         if w is None or self.error is not None or self.closed:
             return False
-        ns = self._epoch_ns + int(round(t_s * 1e9))
+        ns = self._epoch_ns + round(t_s * 1e9)
         try:
             w.add_message(self._channels[topic], log_time=ns, publish_time=ns, data=data,
                           sequence=self._seq)

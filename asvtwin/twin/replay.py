@@ -15,6 +15,7 @@ them, ``asvtwin replay FILE --headless`` prints :attr:`Recording.summary`.
 from __future__ import annotations
 
 import bisect
+import itertools
 import os
 from collections.abc import Iterator
 from pathlib import Path
@@ -72,7 +73,7 @@ class Recording:
         if self._meta is None:
             raise SourceError(f"{self.path} holds no {METADATA_NAME!r} metadata: not a "
                               "recording of 'asvtwin run' (or cut before its first chunk)")
-        self.epoch_ns = int(round(float(self._meta.get("epoch_unix_s", "0")) * 1e9))
+        self.epoch_ns = round(float(self._meta.get("epoch_unix_s", "0")) * 1e9)
         self.metadata: dict[str, Any] = {
             "scenario": orjson.loads(self._meta["scenario"]) if self._meta.get("scenario") else None,
             "seed": int(self._meta.get("seed", "0")),
@@ -103,7 +104,7 @@ class Recording:
         except OSError as exc:
             raise SourceError(f"cannot read recording {self.path}: {exc}") from exc
         for ts, data in mem.values():  # log-time order (chunks are written in time order)
-            if any(b < a for a, b in zip(ts, ts[1:], strict=False)):
+            if any(b < a for a, b in itertools.pairwise(ts)):
                 order = sorted(range(len(ts)), key=ts.__getitem__)
                 ts[:] = [ts[i] for i in order]
                 data[:] = [data[i] for i in order]
@@ -145,8 +146,8 @@ class Recording:
     def iter_messages(self, start_s: float = 0.0, *, topic: str = SNAPSHOT_TOPIC,
                       end_s: float | None = None) -> Iterator[tuple[float, bytes]]:
         """``(t_s, message bytes)`` of ``topic`` from ``start_s`` on, in time order."""
-        start_ns = self.epoch_ns + int(round(start_s * 1e9))
-        end_ns = None if end_s is None else self.epoch_ns + int(round(end_s * 1e9))
+        start_ns = self.epoch_ns + round(start_s * 1e9)
+        end_ns = None if end_s is None else self.epoch_ns + round(end_s * 1e9)
         if self._mem is not None:
             ts, data = self._mem.get(topic, ([], []))
             i = bisect.bisect_left(ts, start_ns)

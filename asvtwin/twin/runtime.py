@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import threading
 from collections import deque
 from collections.abc import Callable
@@ -65,7 +66,6 @@ from asvtwin.twin.snapshot import (
 from asvtwin.twin.summary import RunMetrics, RunSummary
 from asvtwin.twin.transponders import Transponders
 from asvtwin.twin.world import World
-from asvtwin.units import KNOT_M_S
 from asvtwin.vessel import VesselParams, vessel_by_name
 
 __all__ = ["TIMING_FIELDS", "Twin", "comparable", "run_scenario"]
@@ -245,7 +245,15 @@ class Twin:
                 return OfflineWeatherSource(w.path).fetch(), str(w.path)
             from asvtwin.sources.weather import MetNoClient
 
-            return MetNoClient().fetch(), "met.no"  # the live service (network at the edge)
+            # the live service (network at the edge): needs ASVTWIN_USER_AGENT naming the
+            # application and a contact, as api.met.no's terms ask; the forecast is fetched
+            # once at the start of the run
+            p = self.scenario.own_ship.start.to_ned(self.scene.frame)
+            lat, lon = self.scene.frame.to_wgs84(p[0], p[1])
+            client = MetNoClient(float(lat), float(lon),
+                                 user_agent=os.environ.get("ASVTWIN_USER_AGENT", ""),
+                                 clock=lambda: self.clock.now_utc().timestamp())
+            return client.fetch(), "met.no"
         except Exception as exc:  # noqa: BLE001 - a missing forecast degrades, not kills
             self._events_early = [f"weather unavailable ({exc}); running without weather"]
             return None, "none"
@@ -594,7 +602,7 @@ class Twin:
         recording and return the summary. ``progress(t_s, duration_s)`` is called about
         every 5 % of the run."""
         end = float(self.scenario.duration_s if duration_s is None else duration_s)
-        n_end = int(round(end / self.dt_s))
+        n_end = round(end / self.dt_s)
         w0 = self.clock.perf()
         every = max(1, n_end // 20)
         try:
@@ -676,7 +684,7 @@ class Twin:
 
     # ================================================================ re-running a recording
     @classmethod
-    def from_recording(cls, path: str | Path, **kwargs: Any) -> Twin:
+    def from_recording(cls, path: str | os.PathLike[str], **kwargs: Any) -> Twin:
         """A twin that re-runs a recording from its raw inputs (NMEA lines, commands) and
         seed; its snapshots equal the recorded ones up to :data:`TIMING_FIELDS`."""
         from asvtwin.twin.replay import Recording

@@ -91,12 +91,13 @@ class RunSummary:
         d = self.to_dict()
         mt = ", ".join(f"{k} {v:.0f} m" for k, v in self.min_distance_targets_m.items()) or "none"
         lines = [
-            f"scenario {self.scenario} (seed {self.seed}): {self.duration_s:.0f} s simulated in "
-            f"{self.wall_s:.1f} s wall ({self.realtime_factor:.1f}x real time), {self.ticks} ticks",
-            f"collisions {self.collisions}, groundings {self.groundings}; closest approach: {mt}; "
-            f"land {self.min_distance_land_m:.0f} m",
-            f"filter: {self.filter_calls} calls, {self.interventions} interventions, fallbacks "
-            f"{self.fallbacks or 0}",
+            (f"scenario {self.scenario} (seed {self.seed}): {self.duration_s:.0f} s simulated "
+             f"in {self.wall_s:.1f} s wall ({self.realtime_factor:.1f}x real time), "
+             f"{self.ticks} ticks"),
+            (f"collisions {self.collisions}, groundings {self.groundings}; closest approach: "
+             f"{mt}; land {self.min_distance_land_m:.0f} m"),
+            (f"filter: {self.filter_calls} calls, {self.interventions} interventions, "
+             f"fallbacks {self.fallbacks or 0}"),
         ]
         for zone in ("open_sea", "near_coast"):
             z = d["tracking"].get(zone, {})

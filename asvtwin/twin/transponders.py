@@ -19,7 +19,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from asvtwin.geo import LocalFrame
 from asvtwin.sources.ais import (
@@ -60,8 +60,8 @@ class Transponders:
     """
 
     def __init__(self, mmsi: Sequence[int | None], ais_class: Sequence[str | None],
-                 names: Sequence[str], ship_types: Sequence[int], length_m: Sequence[float],
-                 beam_m: Sequence[float], *, frame: LocalFrame, epoch_unix_s: float,
+                 names: Sequence[str], ship_types: Sequence[int], length_m: ArrayLike,
+                 beam_m: ArrayLike, *, frame: LocalFrame, epoch_unix_s: float,
                  rng: np.random.Generator, station: str = "2579999") -> None:
         self.frame = frame
         self.epoch_unix_s = float(epoch_unix_s)
@@ -81,8 +81,8 @@ class Transponders:
         self.add(mmsi, ais_class, names, ship_types, length_m, beam_m, t_s=0.0)
 
     def add(self, mmsi: Sequence[int | None], ais_class: Sequence[str | None],
-            names: Sequence[str], ship_types: Sequence[int], length_m: Sequence[float],
-            beam_m: Sequence[float], *, t_s: float) -> None:
+            names: Sequence[str], ship_types: Sequence[int], length_m: ArrayLike,
+            beam_m: ArrayLike, *, t_s: float) -> None:
         """Append vessels (their first report falls within one interval of ``t_s``)."""
         k = len(mmsi)
         self._mmsi += [int(m) if m is not None else -1 for m in mmsi]
@@ -91,7 +91,7 @@ class Transponders:
                                                     for c, m in zip(ais_class, mmsi, strict=True)]])
         self._names += list(names)
         self._types += [int(t) for t in ship_types]
-        self._dims += [(float(a), float(b)) for a, b in zip(length_m, beam_m, strict=True)]
+        self._dims += [(float(a), float(b)) for a, b in zip(np.asarray(length_m, float).reshape(-1), np.asarray(beam_m, float).reshape(-1), strict=True)]
         self._next = np.concatenate([self._next, t_s + np.floor(self.rng.uniform(0.0, 10.0, k))])
         self._next_static = np.concatenate(
             [self._next_static, t_s + np.floor(self.rng.uniform(0.0, 30.0, k))])

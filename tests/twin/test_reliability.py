@@ -23,7 +23,7 @@ FAST = {"sim_hz": 5.0, "tracker_hz": 2.0, "observer_hz": 5.0, "controller_hz": 5
 def _run(twin: Twin, seconds: float, hook=None) -> list:
     snaps = []
     twin.on_snapshot = lambda s, b: snaps.append(s)
-    for _ in range(int(round(seconds / twin.dt_s))):
+    for _ in range(round(seconds / twin.dt_s)):
         if hook is not None:
             hook(twin)
         twin.step()

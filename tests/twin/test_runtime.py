@@ -42,7 +42,7 @@ def recorded(tmp_path_factory):
 
 
 def test_snapshot_is_complete_and_matches_its_schema(recorded):
-    twin, summary, snaps, _ = recorded
+    _, summary, snaps, _ = recorded
     snap, data = snaps[-1]
     jsonschema.validate(decode(data), json_schema())
     assert snap.seq == 590 and snap.t_s == pytest.approx(59.0)

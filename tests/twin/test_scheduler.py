@@ -24,9 +24,9 @@ def test_components_run_at_their_own_rates():
     calls = {"lidar": 0, "filter": 0, "every": 0}
     for k in range(200):  # 10 s at 20 Hz
         t = 0.05 * k
-        for name in calls:
+        for name, count in list(calls.items()):
             if s.due(name, t):
-                s.call(name, t, calls.__setitem__, name, calls[name] + 1)
+                s.call(name, t, calls.__setitem__, name, count + 1)
     assert calls == {"lidar": 100, "filter": 20, "every": 200}
 
 

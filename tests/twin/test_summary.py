@@ -25,8 +25,8 @@ def _metrics(land=None, names=("T",)):
 
 
 def _rest():
-    return dict(scenario="s", seed=0, duration_s=1.0, ticks=1, wall_s=1.0, realtime_factor=1.0,
-                filter_calls=0, interventions=0, fallbacks={}, ms_per_tick={}, degradations=())
+    return {"scenario": "s", "seed": 0, "duration_s": 1.0, "ticks": 1, "wall_s": 1.0, "realtime_factor": 1.0,
+                "filter_calls": 0, "interventions": 0, "fallbacks": {}, "ms_per_tick": {}, "degradations": ()}
 
 
 def test_collision_is_hull_contact_counted_once_per_contact():
