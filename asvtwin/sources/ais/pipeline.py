@@ -196,7 +196,9 @@ class AisPipeline:
         self._seen: dict[bytes, float] = {}
         self._last_t: dict[int, float] = {}
         self._hwm: float | None = None  # latest accepted report time [UNIX s]
-        self._tag_cache: dict[bytes, tuple[Any, ...]] = {}
+        self._tag_cache: dict[bytes, tuple[Any, ...]] = {}  # (t + offset, station, c_only)
+        self._bad_tag_cache: dict[bytes, tuple[Any, ...]] = {}  # (ErrorKind, detail)
+        self._tag_offset = 0.0
         self._lines = 0
         self._by_type: dict[int, int] = {}
         self._n_reports = 0
@@ -279,6 +281,7 @@ class AisPipeline:
         seen = self._seen
         last_t = self._last_t
         tags = self._tag_cache
+        bad_tags = self._bad_tag_cache
         frags = self.fragments
         census = self.census
         stream = self.stream_clock
@@ -297,6 +300,13 @@ class AisPipeline:
         lag_limit = clock_now - self._max_lag_s if clock_now is not None else -math.inf
         if recv_time_s is not None:
             recv_time_s += time_offset_s
+            if T_MIN_UNIX_S <= recv_time_s <= T_MAX_UNIX_S:
+                stream.observe(recv_time_s)  # receive times count once per batch
+                if clock_now is None:
+                    ref = stream.reference
+        if time_offset_s != self._tag_offset:  # cached tag times include the offset
+            tags.clear()
+            self._tag_offset = time_offset_s
         # Checksums of every sentence and tag block from one prefix XOR over the batch:
         # xor(buf[a:b]) = P[b-1] ^ P[a-1] (NMEA: XOR of the bytes between the delimiters)
         joined = b"".join(raws)
@@ -334,16 +344,26 @@ class AisPipeline:
                     continue
                 tag = raw[1:end]
                 parsed = tags.get(tag)
-                if parsed is None:
-                    parsed = self._parse_tag(tag, P, o)
-                    if len(tags) > 1024:
-                        tags.clear()
-                    tags[tag] = parsed
-                if len(parsed) == 2:  # (kind, detail): rejected
-                    count(parsed[0], raw, parsed[1])
-                    continue
+                if parsed is None:  # a new tag (a new second or station): parse, check, cache
+                    parsed = bad_tags.get(tag)
+                    if parsed is None:
+                        parsed = self._parse_tag(tag, P, o, time_offset_s)
+                        cache = bad_tags if len(parsed) == 2 else tags
+                        if len(cache) > 1024:
+                            cache.clear()
+                        cache[tag] = parsed
+                        t_tag = parsed[0] if len(parsed) == 3 else None
+                        if t_tag is not None and T_MIN_UNIX_S <= t_tag <= T_MAX_UNIX_S:
+                            recent.append(t_tag)  # robust stream time: every distinct time
+                            if len(recent) >= n_recent_max:
+                                stream.update()
+                                if clock_now is None:
+                                    ref = stream.reference
+                    if len(parsed) == 2:  # (kind, detail): rejected
+                        count(parsed[0], raw, parsed[1])
+                        continue
                 if parsed[0] is not None:
-                    t = parsed[0] + time_offset_s
+                    t = parsed[0]  # offset included (the caches are per offset)
                 elif t is not None:
                     notice(NoticeKind.RECEIVE_TIME, raw, "tag block without c:")
                 station = parsed[1]
@@ -382,7 +402,7 @@ class AisPipeline:
             if body[5] == 79:  # "!xxVDO": the own ship's transponder
                 count(ErrorKind.OWN_SHIP, raw, "VDO is the own ship's report, not a target")
                 continue
-            if body[star - 2] != 44 or not 48 <= body[star - 1] <= 53:
+            if body[star - 2] != 44 or not 48 <= body[star - 1] <= 53:  # pyais reads "x" as 0
                 count(ErrorKind.MALFORMED, raw, "fill bits must be one digit 0..5")
                 continue
             if msg.payload.translate(None, _ARMOUR):
@@ -390,23 +410,15 @@ class AisPipeline:
                 count(ErrorKind.DECODE_ERROR, raw,
                       f"payload character {bad!r} is outside the AIS 6-bit alphabet")
                 continue
-            if t is not None:
-                # the fragment timeout, on every line whose time is not a lie (a line dated
-                # hours ahead must not expire other stations' messages)
-                if t > frags.deadline and (ref is None or t <= ref + lead):
-                    frags.expire(t)
-                if T_MIN_UNIX_S <= t <= T_MAX_UNIX_S:  # robust stream time (all lines)
-                    recent.append(t)
-                    if len(recent) >= n_recent_max:
-                        stream.update()
-                        if clock_now is None:
-                            ref = stream.reference
-                    if census is not None:
-                        census.see_time(t)
-                elif census is not None:
+            # the fragment timeout, on every line whose time is not a lie (a line dated hours
+            # ahead must not expire other stations' messages)
+            if t is not None and t > frags.deadline and (ref is None or t <= ref + lead):
+                frags.expire(t)
+            if census is not None:
+                if t is not None and T_MIN_UNIX_S <= t <= T_MAX_UNIX_S:
+                    census.see_time(t)
+                else:
                     census.untimed_lines += 1
-            elif census is not None:
-                census.untimed_lines += 1
             # --- 2. assembly
             if msg.frag_cnt > 1:
                 done = frags.add(msg, t, station, raw)
@@ -414,10 +426,10 @@ class AisPipeline:
                     continue
                 msg, t, station = done
             payload = msg.payload
-            if not payload:
+            ais_id = msg.ais_id
+            if ais_id not in _MIN_BITS and not payload:  # (an empty payload reads as type 0)
                 count(ErrorKind.SHORT_PAYLOAD, raw, "empty payload")
                 continue
-            ais_id = msg.ais_id
             by_type[ais_id] = by_type.get(ais_id, 0) + 1
             if census is not None and len(msg.bv) >= 38:
                 census.mmsis.add(msg.bv.get(8, 30))
@@ -554,9 +566,10 @@ class AisPipeline:
         )
 
     @staticmethod
-    def _parse_tag(tag: bytes, P: bytes, o: int) -> tuple[Any, ...]:
-        """A tag block as ``(t, station, c_only)`` or ``(ErrorKind, detail)`` (cached);
-        ``tag`` is ``raw[1:end]`` of the line at offset ``o`` of the batch's prefix XOR ``P``."""
+    def _parse_tag(tag: bytes, P: bytes, o: int, offset: float) -> tuple[Any, ...]:
+        """A tag block as ``(t + offset, station, c_only)`` or ``(ErrorKind, detail)``
+        (cached); ``tag`` is ``raw[1:end]`` of the line at offset ``o`` of the batch's prefix
+        XOR ``P``."""
         star = tag.rfind(b"*")
         try:
             # xor(raw[1:1 + star]) from the batch's prefix XOR
@@ -564,7 +577,8 @@ class AisPipeline:
         except TagBlockError as exc:
             return (ErrorKind.BAD_TAG_CHECKSUM if exc.checksum else ErrorKind.BAD_TAG_BLOCK,
                     str(exc))
-        return (tb.t_unix_s, tb.station, tb.checksum_over == "c")
+        t = None if tb.t_unix_s is None else tb.t_unix_s + offset
+        return (t, tb.station, tb.checksum_over == "c")
 
     def _prime(self, raws: list[bytes]) -> None:
         """Start the stream time from the tag times of a stream's first lines."""
