@@ -4,13 +4,16 @@ nothing is said when the cache is warm."""
 from __future__ import annotations
 
 import io
+import os
 import subprocess
 import sys
 import textwrap
 
 import numba
+import pytest
 
 from asvtwin.cli.progress import compile_notice
+from tests.conftest import full_run
 
 
 def test_a_compilation_is_announced_once_with_a_summary():
@@ -74,3 +77,22 @@ def test_a_library_build_announced_on_the_build_logger_is_shown():
     assert progress.builds and "compiled 0 kernels and 1 solver build in" in text
     # outside the block the logger is quiet again (default WARNING level)
     assert logging.getLogger(BUILD_LOGGER).level == logging.NOTSET
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not full_run(), reason="compiles the vessel kernels from an empty "
+                    "cache (~10 s CPU); set ASVTWIN_FULL=1")
+def test_first_run_from_an_empty_cache_says_so(tmp_path):
+    """The README's first-run promise, end to end: an empty numba cache, the make-run
+    command, the notice on stderr; the second run is silent."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    argv = [sys.executable, "-m", "asvtwin", "sim", "--vessel", "cybership2", "--manoeuvre",
+            "thrust_step", "--no-plot", "--out", str(tmp_path / "out")]
+    first = subprocess.run(argv, capture_output=True, text=True, env=env, timeout=600,
+                           check=False)
+    assert first.returncode == 0, first.stderr
+    assert first.stderr.startswith("asvtwin: compiling kernels, first run only")
+    assert "later runs load them from the cache" in first.stderr
+    second = subprocess.run(argv, capture_output=True, text=True, env=env, timeout=600,
+                            check=False)
+    assert second.returncode == 0 and second.stderr == ""
