@@ -15,6 +15,7 @@ from asvtwin.control import (
     MovingObstacles,
     PsfConfig,
     SafetyFilter,
+    available_backends,
 )
 from asvtwin.control.backends.base import RawSolution
 from asvtwin.errors import ConfigError
@@ -180,30 +181,36 @@ def test_full_scale_open_water_passes_and_short_horizons_are_refused():
         SafetyFilter(p, config=PsfConfig(dt_s=0.5, backend="casadi-ipopt"))
 
 
-def test_astern_gives_a_stopped_ship_an_escape():
-    """Stopped, a vessel crossing straight at the own ship: the astern-capable hull backs
-    off; the filter offers astern candidates and uses negative surge thrust."""
-    fwd = cybership2_full_scale()
-    ast = with_astern(fwd)
-    assert ast.actuators.tau_min[0] == pytest.approx(-0.6 * fwd.actuators.tau_max[0])
-    psf = SafetyFilter(ast, config=PsfConfig(backend="casadi-ipopt"))
-    N, dt = psf.config.N, psf.config.dt_s
-    L = ast.length
-    x = np.zeros(6)
-    v = np.array([0.0, -4.0])
-    p0 = np.array([0.5 * L, 4.0 * 60.0])  # passes 0.5 L ahead of the own origin in 60 s
-    hist = []
-    for k in range(30):
+def _stopped_ship_crossed(params):
+    """Closest approach [m] of a stopped ship to a vessel crossing 0.5 L ahead of it in
+    120 s, with the filter (u_L = no thrust), and whether it ever went astern."""
+    psf = SafetyFilter(params, config=PsfConfig(backend=available_backends()[0]))
+    N, dt, L = psf.config.N, psf.config.dt_s, params.length
+    x, v = np.zeros(6), np.array([0.0, -4.0])
+    p0 = np.array([0.5 * L, 4.0 * 120.0])
+    closest, astern = np.inf, False
+    for k in range(40):
         t = k * dt
         mover = MovingObstacles.constant_velocity([p0 + t * v], [v], [0.5 * L], N=N,
                                                   dt_s=dt, ids=[5])
         r = psf.filter(x, np.zeros(3), mover, t_s=t)
-        hist.append((x.copy(), r))
+        astern |= bool(r.u0[0] < 0)
+        closest = min(closest, float(np.linalg.norm(p0 + t * v - x[:2])) - 0.5 * L)
         x = psf.rollout(x, r.u_pred)[1]
-    assert any(r.u0[0] < 0 for _, r in hist)
-    d = min(np.linalg.norm(p0 + k * dt * v - xx[:2]) - 0.5 * L
-            for k, (xx, _) in enumerate(hist))
-    assert d >= psf.d_safe_m * 0.95
+    return closest, astern, psf.d_safe_m
+
+
+def test_astern_gives_a_stopped_ship_an_escape():
+    """Stopped, a vessel crossing just ahead: the astern-capable hull backs off and keeps
+    d_safe; the forward-only hull can only go ahead or wait and comes closer."""
+    fwd = cybership2_full_scale()
+    ast = with_astern(fwd)
+    assert ast.actuators.tau_min[0] == pytest.approx(-0.6 * fwd.actuators.tau_max[0])
+    d_ast, went_astern, d_safe = _stopped_ship_crossed(ast)
+    d_fwd, _, _ = _stopped_ship_crossed(fwd)
+    assert went_astern
+    assert d_ast >= 0.95 * d_safe
+    assert d_ast > d_fwd
 
 
 def test_auto_backend_falls_back_to_ipopt_when_acados_cannot_build(monkeypatch):
