@@ -16,6 +16,7 @@ import json
 import logging
 import sys
 from pathlib import Path
+from typing import Any
 
 from asvtwin.cli.argtypes import PSF_BACKENDS, out_dir, positive_float, positive_int
 
@@ -57,15 +58,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def load_scenario_arg(path: Path | None):  # type: ignore[no-untyped-def]
+def load_scenario_arg(path: Path | None) -> Any:
     """The scenario named on the command line: a file, a library name, or the default."""
-    from asvtwin.scenarios import default_scenario, library_names, load_library, load_scenario
+    from asvtwin.scenarios import default_scenario, load_any
 
-    if path is None:
-        return default_scenario()
-    if not path.exists() and str(path) in library_names():
-        return load_library(str(path))
-    return load_scenario(path)
+    return default_scenario() if path is None else load_any(path)
 
 
 def run(args: argparse.Namespace) -> int:
