@@ -42,7 +42,7 @@ from asvtwin.geo import Scene, default_scene
 from asvtwin.sources.ais.counters import ErrorCounter, ErrorKind, NoticeKind, PipelineStats
 from asvtwin.sources.ais.fragments import FragmentAssembler
 from asvtwin.sources.ais.reports import AisStatic, ReportBatch
-from asvtwin.sources.ais.tagblock import TagBlockError, parse_tag_block
+from asvtwin.sources.ais.tagblock import TagBlockError, parse_tag_block, parse_tag_block_time
 from asvtwin.sources.ais.timebase import T_MAX_UNIX_S, T_MIN_UNIX_S, StreamClock
 from asvtwin.units import KNOT_M_S
 
@@ -573,12 +573,12 @@ class AisPipeline:
         star = tag.rfind(b"*")
         try:
             # xor(raw[1:1 + star]) from the batch's prefix XOR
-            tb = parse_tag_block(tag, whole_xor=(P[o + star] ^ P[o]) if star > 0 else None)
+            t, station, c_only = parse_tag_block_time(tag, (P[o + star] ^ P[o]) if star > 0
+                                                      else None)
         except TagBlockError as exc:
             return (ErrorKind.BAD_TAG_CHECKSUM if exc.checksum else ErrorKind.BAD_TAG_BLOCK,
                     str(exc))
-        t = None if tb.t_unix_s is None else tb.t_unix_s + offset
-        return (t, tb.station, tb.checksum_over == "c")
+        return (None if t is None else t + offset, station, c_only)
 
     def _prime(self, raws: list[bytes]) -> None:
         """Start the stream time from the tag times of a stream's first lines."""

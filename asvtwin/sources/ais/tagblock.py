@@ -24,7 +24,14 @@ from dataclasses import dataclass
 
 from asvtwin.errors import SourceError
 
-__all__ = ["TagBlock", "TagBlockError", "parse_tag_block", "xor_checksum"]
+__all__ = [
+    "TagBlock",
+    "TagBlockError",
+    "parse_tag_block",
+    "parse_tag_block_time",
+    "parse_tag_fields",
+    "xor_checksum",
+]
 
 #: c: above this is in milliseconds (1e11 s is the year 5138).
 _MS_THRESHOLD = 1e11
@@ -107,6 +114,19 @@ def parse_tag_block(tag: bytes, *, whole_xor: int | None = None) -> TagBlock:
         No ``*hh``, a checksum matching neither the whole tag nor the ``c:`` field, or a
         malformed ``c:``/``g:`` field; the message says which check failed.
     """
+    return TagBlock(*parse_tag_fields(tag, whole_xor))
+
+
+def parse_tag_block_time(tag: bytes, whole_xor: int | None = None
+                         ) -> tuple[float | None, str | None, bool]:
+    """The hot path's form of :func:`parse_tag_block`: ``(t_unix_s, station, c_only)``."""
+    t, station, _, over = parse_tag_fields(tag, whole_xor)
+    return t, station, over == "c"
+
+
+def parse_tag_fields(tag: bytes, whole_xor: int | None = None
+                     ) -> tuple[float | None, str | None, tuple[int, int, int] | None, str]:
+    """:func:`parse_tag_block` as a plain tuple ``(t, station, group, checksum_over)``."""
     star = tag.rfind(b"*")
     if star < 0 or len(tag) - star != 3:
         raise TagBlockError("tag block does not end in *hh")
@@ -127,27 +147,37 @@ def parse_tag_block(tag: bytes, *, whole_xor: int | None = None) -> TagBlock:
             if c_field is not None:
                 raise TagBlockError("tag block has two c: fields")
             c_field = fld
-            t = _digits_time(fld[2:])
+            value = fld[2:]
+            if value.isdigit() and len(value) <= 16:  # the usual case: whole seconds or ms
+                t = float(value)
+                if t > _MS_THRESHOLD:
+                    t /= 1000.0
+            else:
+                t = _digits_time(value)
         elif key == b"s:":
             station = fld[2:].decode("ascii", "backslashreplace")
         elif key == b"g:":
-            parts = fld[2:].split(b"-")
-            if len(parts) != 3 or not all(p.isdigit() and len(p) <= 9 for p in parts):
-                raise TagBlockError(f"tag block g: must be n-m-id digits, actually: "
-                                    f"{fld[2:].decode('ascii', 'backslashreplace')!r}")
-            n, m, gid = (int(p) for p in parts)
-            if not 1 <= n <= m:
-                raise TagBlockError(f"tag block g: sentence 1..{m} expected, actually {n}")
-            group = (n, m, gid)
+            group = _group(fld[2:])
         elif len(fld) < 2 or fld[1:2] != b":":
             raise TagBlockError(f"tag block field {fld.decode('ascii', 'backslashreplace')!r} "
                                 "is not key:value")
     whole = xor_checksum(body) if whole_xor is None else whole_xor
     if whole == expected:
-        return TagBlock(t, station, group, "tag")
+        return t, station, group, "tag"
     if c_field is not None and xor_checksum(c_field) == expected:
-        return TagBlock(t, station, group, "c")
+        return t, station, group, "c"
     over_c = f", 0x{xor_checksum(c_field):02X} over c: alone" if c_field is not None else \
         " (no c: field for the c:-only convention)"
     raise TagBlockError(f"tag block checksum 0x{expected:02X} in the tag, 0x{whole:02X} computed "
                         f"over the whole tag{over_c}", checksum=True)
+
+
+def _group(value: bytes) -> tuple[int, int, int]:
+    parts = value.split(b"-")
+    if len(parts) != 3 or not all(p.isdigit() and len(p) <= 9 for p in parts):
+        raise TagBlockError(f"tag block g: must be n-m-id digits, actually: "
+                            f"{value.decode('ascii', 'backslashreplace')!r}")
+    n, m, gid = (int(p) for p in parts)
+    if not 1 <= n <= m:
+        raise TagBlockError(f"tag block g: sentence 1..{m} expected, actually {n}")
+    return n, m, gid
