@@ -379,7 +379,8 @@ class WeatherSpec(_Model):
 
     mode: Literal["fixture", "file", "live"] = Field(
         default="fixture",
-        description="fixture (the bundled MET Norway forecast for Trondheim), file "
+        description="fixture (the bundled synthetic Trondheim forecast, authored for asvtwin: not "
+        "MET Norway data), file "
         "(a locationforecast JSON), live (api.met.no)",
     )
     path: str | None = Field(default=None, description="forecast JSON for mode file")
