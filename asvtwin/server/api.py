@@ -11,7 +11,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-__all__ = ["CONTROL_MODELS", "ClientOptions", "MAX_BODY_BYTES"]
+__all__ = ["CONTROL_MODELS", "MAX_BODY_BYTES", "ClientOptions"]
 
 #: Largest control request body [bytes]; larger ones are refused with 413.
 MAX_BODY_BYTES = 64 * 1024
@@ -117,8 +117,13 @@ CONTROL_MODELS: dict[str, type[BaseModel]] = {
 
 
 class ClientOptions(_Strict):
-    """A WebSocket client's options (query string ``?rate_hz=..&format=..``, or a JSON text
-    message ``{"rate_hz": ..}`` later): snapshots per second and the encoding."""
+    """A WebSocket client's options (query string ``?rate_hz=..&format=..&ack=1``, or a JSON
+    text message ``{"rate_hz": ..}`` later): snapshots per second, the encoding, and whether
+    the client acknowledges each snapshot (``{"ack": seq}``) before it gets the next one.
+
+    With ``ack`` a client that is slow to process (a browser tab on a busy machine) gets
+    fewer, always fresh snapshots instead of filling the socket until it is dropped."""
 
     rate_hz: Annotated[float, Field(ge=0.1, le=60.0, allow_inf_nan=False)] = 10.0
     format: Literal["json", "msgpack"] = "json"
+    ack: bool = False

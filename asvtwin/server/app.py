@@ -10,7 +10,8 @@ Endpoints (all JSON unless said otherwise):
 ``GET /api/schema``              the snapshot's JSON Schema
 ``GET /api/stats``               clients, frames sent/replaced, refused requests by reason
 ``POST /api/control/{action}``   pause, resume, speed, step, filter, route, inject, wind, seek
-``WS /ws?rate_hz=10&format=json``  snapshots at the client's rate (json or msgpack)
+``WS /ws?rate_hz=10&format=json&ack=0``  snapshots at the client's rate (json or msgpack;
+                                 with ``ack=1`` the next one waits for ``{"ack": seq}``)
 
 Security: the server binds 127.0.0.1 unless told otherwise. A request from any other
 address needs the access token (``Authorization: Bearer T``, header ``X-Asvtwin-Token`` or
@@ -36,13 +37,13 @@ import time
 from collections.abc import AsyncIterator, Awaitable, Callable, MutableMapping
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
 import orjson
 from fastapi import FastAPI, Request, WebSocket, WebSocketDisconnect
-from fastapi.responses import FileResponse, JSONResponse, Response
+from fastapi.responses import FileResponse, Response
 from fastapi.staticfiles import StaticFiles
 from pydantic import ValidationError
 
@@ -329,8 +330,9 @@ def create_app(feed: Any, *, token: str | None = None, send_timeout_s: float = 2
 
     @app.websocket("/ws")
     async def ws_endpoint(ws: WebSocket) -> None:
-        q = {k: v for k, v in ws.query_params.items() if k in ("rate_hz", "format")}
-        unknown = set(ws.query_params) - {"rate_hz", "format", "token"}
+        q: dict[str, Any] = {k: v for k, v in ws.query_params.items()
+                             if k in ("rate_hz", "format", "ack")}
+        unknown = set(ws.query_params) - {"rate_hz", "format", "ack", "token"}
         try:
             if unknown:
                 raise ValueError(f"unknown query parameter(s) {sorted(unknown)}")
@@ -364,6 +366,9 @@ def create_app(feed: Any, *, token: str | None = None, send_timeout_s: float = 2
                 return
             try:
                 raw = orjson.loads(text)
+                if isinstance(raw, dict) and set(raw) == {"ack"}:
+                    client.credit.set()  # the client took the last snapshot
+                    continue
                 client.options = ClientOptions.model_validate({**client.options.model_dump(), **raw})
             except (orjson.JSONDecodeError, ValidationError, TypeError) as exc:
                 hub.counters["refused_ws_message"] += 1
@@ -453,7 +458,7 @@ class ServerThread:
         self.server.should_exit = True
         self._thread.join(timeout=10.0)
 
-    def __enter__(self) -> ServerThread:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -41,6 +41,7 @@ class Client:
     queue: asyncio.Queue[Frame] = field(default_factory=lambda: asyncio.Queue(maxsize=1))
     events: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=256))
     wake: asyncio.Event = field(default_factory=asyncio.Event)
+    credit: asyncio.Event = field(default_factory=asyncio.Event)  # set: may send (ack mode)
     sent: int = 0
     replaced: int = 0
     bytes_sent: int = 0
@@ -80,7 +81,7 @@ class Hub:
             t0 = time.perf_counter()
             try:
                 fr = self.feed.frame()
-            except Exception:  # noqa: BLE001 - a feed bug must not kill the server; logged once per kind
+            except Exception:
                 self.counters["feed_errors"] += 1
                 if self.counters["feed_errors"] == 1:
                     log.exception("the feed failed to give a frame")
@@ -108,6 +109,7 @@ class Hub:
     # ------------------------------------------------------------- clients
     def add(self, options: ClientOptions) -> Client:
         c = Client(options)
+        c.credit.set()
         self.clients.add(c)
         self.counters["ws_connected"] += 1
         if self.last_frame is not None:
@@ -135,6 +137,13 @@ class Hub:
                 await self._send(ws, c, orjson.dumps(c.events.popleft()), text=True)
             if frame is None:
                 continue
+            if c.options.ack:
+                # wait for the client to acknowledge the previous snapshot; a newer frame
+                # arriving meanwhile replaces this one
+                await c.credit.wait()
+                c.credit.clear()
+                if not c.queue.empty():
+                    frame = c.queue.get_nowait()
             data = frame.msgpack() if c.options.format == "msgpack" else frame.data
             await self._send(ws, c, data, text=False)
             c.sent += 1

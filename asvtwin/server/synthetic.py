@@ -357,4 +357,7 @@ class SyntheticFeed:
             else:
                 raise ControlError(f"action {action!r} is not available; allowed: "
                                    f"{', '.join(self.actions)}")
+            # publish the new state at once (a paused world still shows what changed)
+            self.seq += 1
+            self._snap = self._snapshot()
         return {"ok": True, "action": action}

@@ -139,9 +139,9 @@ def test_non_local_requests_need_the_token(feed):
 def test_dns_rebinding_and_cross_site_websocket_are_refused(client):
     r = client.get("/api/info", headers={"host": "attacker.example:8765"})
     assert r.status_code == 403 and "DNS rebinding" in r.json()["error"]
-    with pytest.raises(Exception):  # noqa: B017 - starlette raises WebSocketDisconnect(1008)
-        with client.websocket_connect("ws://127.0.0.1/ws", headers={"origin": "http://attacker.example"}):
-            pass
+    with (pytest.raises(Exception),  # noqa: B017 - starlette raises WebSocketDisconnect(1008)
+          client.websocket_connect("ws://127.0.0.1/ws", headers={"origin": "http://attacker.example"})):
+        pass
     assert client.hub.counters["refused_403"] >= 2
 
 
@@ -174,9 +174,9 @@ def test_websocket_json_and_msgpack_carry_the_same_snapshot(client, feed):
 
 def test_websocket_bad_options_are_refused(client):
     for q in ("rate_hz=1000", "rate_hz=abc", "format=xml", "colour=red"):
-        with pytest.raises(Exception):  # noqa: B017 - closed with 1008 before accept
-            with client.websocket_connect(f"ws://127.0.0.1/ws?{q}"):
-                pass
+        with (pytest.raises(Exception),  # noqa: B017 - closed with 1008 before accept
+              client.websocket_connect(f"ws://127.0.0.1/ws?{q}")):
+            pass
     with client.websocket_connect("ws://127.0.0.1/ws?rate_hz=5") as ws:
         ws.receive_text()
         ws.send_text('{"rate_hz": -4}')

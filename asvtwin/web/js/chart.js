@@ -105,8 +105,18 @@ export class Chart {
     addSymbols(m);
     const src = (id, data = EMPTY) => m.addSource(id, { type: 'geojson', data, tolerance: 0.2 });
     src('land', this.scene.land);
-    for (const id of ['route', 'track', 'lidar', 'ellipses', 'cones', 'preds', 'plan', 'arrows', 'cpa', 'vectors', 'targets', 'own', 'draft']) src(id);
-    const add = (layer) => m.addLayer(layer);
+    // every moving part lives in one GeoJSON source (one setData, one re-tiling per update);
+    // each feature's `kind` selects its layer
+    src('dyn');
+    src('draft');
+    const add = (layer) => {
+      if (layer.source === 'dyn' || !['land', 'draft'].includes(layer.source)) {
+        const kind = ['==', ['get', 'kind'], layer.source];
+        layer.filter = layer.filter ? ['all', kind, layer.filter] : kind;
+        layer.source = 'dyn';
+      }
+      m.addLayer(layer);
+    };
     add({ id: 'land', type: 'fill', source: 'land', paint: { 'fill-color': P.land } });
     add({ id: 'coast', type: 'line', source: 'land', paint: { 'line-color': P.coast, 'line-width': 1 } });
     add({ id: 'route', type: 'line', source: 'route', filter: ['==', ['geometry-type'], 'LineString'], paint: { 'line-color': P.route, 'line-width': 2, 'line-dasharray': [4, 2] } });
@@ -153,7 +163,8 @@ export class Chart {
     const m = this.map, own = s.own, p = [own.state[0], own.state[1]], psi = own.state[2];
     const L = own.length_m || 10, B = own.beam_m || 3;
     const sog = own.sog_m_s || 0, cog = own.cog_rad ?? psi;
-    const set = (id, feats) => m.getSource(id).setData(fc(feats));
+    const all = [];
+    const set = (kind, feats) => { for (const f of feats) { f.properties.kind = kind; all.push(f); } };
 
     // own ship: hull to scale, heading line, COG/SOG vector, position mark
     const headLen = Math.max(3 * L, 200);
@@ -233,6 +244,7 @@ export class Chart {
       }
     }
     set('targets', tf); set('vectors', vf); set('cpa', cf);
+    m.getSource('dyn').setData(fc(all));
 
     // orientation: north-up, course-up or head-up, following the own ship
     const bearing = this.orientation === 'course' ? deg(cog) : this.orientation === 'head' ? deg(psi) : 0;

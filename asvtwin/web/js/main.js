@@ -164,7 +164,9 @@ async function main() {
   // the WebSocket, reconnecting with backoff
   let backoff = 500;
   const connect = () => {
-    const q = new URLSearchParams({ rate_hz: String(rateHz), format: 'json', ...(token ? { token } : {}) });
+    // ack=1: the server sends the next snapshot only after this page took the last one, so
+    // a page slowed down by its machine gets fewer, fresh snapshots (never a backlog)
+    const q = new URLSearchParams({ rate_hz: String(rateHz), format: 'json', ack: '1', ...(token ? { token } : {}) });
     const ws = new WebSocket(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws?${q}`);
     ws.binaryType = 'arraybuffer';
     const dec = new TextDecoder();
@@ -184,6 +186,7 @@ async function main() {
       latest = JSON.parse(dec.decode(ev.data));
       V.snapshots += 1; V.lastSeq = latest.seq; V.latest = latest;
       fresh = true;
+      ws.send(JSON.stringify({ ack: latest.seq }));
     };
   };
   connect();
