@@ -7,7 +7,9 @@ simulator. Timed: the whole ``SafetyFilter.filter`` call (``solve_ms_*``, what a
 waits for) and the backend's solver call alone (``backend_ms_*``). Warm-up excluded: the
 solver build (or cache load) and the first 5 calls. ``fallback_rate`` is fallbacks per
 filter call (goal ≤ 1 %); ``passed_through`` counts calls where u_L was kept behind a
-certified plan without a solve.
+certified plan without a solve. ``cpu_ms_*`` is the process CPU time of a call (less
+affected by other processes on a shared machine than the wall time ``solve_ms_*``; the
+1-minute load average is recorded beside them).
 
 Usage: ``python benchmarks/psf.py [--backend auto|acados|casadi-ipopt] [--steps 300]``
 """
@@ -16,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from collections import Counter
 
@@ -53,19 +56,22 @@ def main() -> None:
     u_L = np.array([2.0, 0.0, 0.0])
     call_ms, solver_ms, fallbacks, violations, min_clear = [], [], 0, 0, np.inf
     kinds: Counter[str] = Counter()
+    cpu_ms: list[float] = []
     interventions = passed = 0
     x = sim.state
     for k in range(args.steps):
         t = k * cfg.dt_s
         moving = MovingObstacles.constant_velocity(mp + t * mv, mv, mr, N=cfg.N, dt_s=cfg.dt_s)
-        c0 = time.perf_counter()
+        c0, p0 = time.perf_counter(), time.process_time()
         res = psf.filter(x, u_L, [static, moving], t_s=t)
-        c1 = time.perf_counter()
+        c1, p1 = time.perf_counter(), time.process_time()
         if k >= 5:
             call_ms.append((c1 - c0) * 1e3)
+            cpu_ms.append((p1 - p0) * 1e3)
             solver_ms.append(res.solve_time_s * 1e3)
         fallbacks += res.fallback != "none"
-        kinds[res.fallback] += res.fallback != "none"
+        if res.fallback != "none":
+            kinds[res.fallback] += 1
         interventions += res.intervened
         passed += res.passed_through
         for j in range(5):
@@ -86,6 +92,9 @@ def main() -> None:
         "solve_ms_median": round(float(np.median(a)), 3),
         "solve_ms_p95": round(float(np.percentile(a, 95)), 3),
         "solve_ms_max": round(float(a.max()), 3),
+        "cpu_ms_median": round(float(np.median(cpu_ms)), 3),
+        "cpu_ms_p95": round(float(np.percentile(cpu_ms, 95)), 3),
+        "load_average_1min": round(os.getloadavg()[0], 1),
         "backend_ms_median": round(float(np.median(b)), 3),
         "backend_ms_p95": round(float(np.percentile(b, 95)), 3),
         "fallbacks": int(fallbacks),

@@ -166,7 +166,7 @@ class SafetyFilter:
         self._limits = EncounterLimits.for_length(params.length)
         self._plan: BackupPlan | None = None
         self._last: tuple[float, _F8, _F8] | None = None  # (t, x_pred, u_pred)
-        self._solved_last = False
+        self._solved_last = False  # the previous call ran the solver
         self._t: float | None = None
         self._dropped_logged = False
 
@@ -400,10 +400,14 @@ class SafetyFilter:
             cand = Candidate(Fallback.TURN_STARBOARD, "colreg", sb, max(1, N // 3))
             xg, ug = self._simulate(x, cand, d)
         P, _, _ = self._stage_params(x, d, centres, radii, segs, [X_L[:, :2], xg[:, :2]])
-        attempts = 1 if self._solved_last else cfg.cold_start_solves
+        # warm: 1 solve; after calls that kept u_L without a solve the iterate is stale: 2;
+        # cold (no plan at all): cold_start_solves (RTI: one QP each)
+        attempts = (1 if self._solved_last else min(2, cfg.cold_start_solves)
+                    ) if self._last is not None else cfg.cold_start_solves
         iters, t_solve, status, solver_why = 0, 0.0, "", ""
         best: tuple | None = None  # (X, U, margins, term, certified, why, path_low)
         scored: list[tuple[str, str, float, bool]] = []
+        rows: list[tuple] = []  # fallback candidates scored in this call
         chosen_kind, chosen_detail = Fallback.NONE, ""
         for rnd in range(1 + cfg.uncertified_retries):
             for _ in range(attempts):
@@ -435,7 +439,8 @@ class SafetyFilter:
             # 3. checked fallback candidates, scored against the obstacles known now
             solver_u = best[1] if best is not None and np.all(np.isfinite(best[1])) else None
             solver_low = best[6] if best is not None else -math.inf
-            pick, scored = self._choose(x, uL, t_s, d, centres, radii, segs, m0, solver_u)
+            pick, scored = self._choose(x, uL, t_s, d, centres, radii, segs, m0, solver_u,
+                                        rows)
             chosen_kind, chosen_detail = pick[0], pick[1]
             best = pick[2:]
             if solver_u is None or (solver_low < 0 <= best[6]):
@@ -484,12 +489,19 @@ class SafetyFilter:
         return X, U
 
     def _choose(self, x: _F8, uL: _F8, t_s: float, d: _F8, centres: _F8, radii: _F8,
-                segs: _F8, m0: _F8, solver_u: _F8 | None) -> tuple[tuple, list]:
+                segs: _F8, m0: _F8, solver_u: _F8 | None, rows: list) -> tuple[tuple, list]:
         """Score every candidate; the certified one nearest u_L (W-norm), else the one
         with the largest closest approach. Returns (kind, detail, X, U, margins, term,
-        certified, why, closest) and the scores (kind, detail, closest [m], certified)."""
-        cands = candidate_inputs(self.params, x, t_s, self.config.N, self._plan, solver_u)
-        rows = []
+        certified, why, closest) and the scores (kind, detail, closest [m], certified).
+        ``rows`` holds the candidates scored earlier in this call (a retry adds only its
+        new solver plan)."""
+        if rows:
+            cands = [Candidate(Fallback.SOLVER_PLAN, "best effort after retry",
+                               np.clip(solver_u, self.u_lb, self.u_ub), self.config.N)
+                     ] if solver_u is not None else []
+        else:
+            cands = candidate_inputs(self.params, x, t_s, self.config.N, self._plan,
+                                     solver_u)
         for c in cands:
             X, U = self._simulate(x, c, d)
             margins, low, term, finite = self._certify(X, centres, radii, segs)
