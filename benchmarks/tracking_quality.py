@@ -32,17 +32,26 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "tracking"))
 
-from scenes import T_SCENE_S as T_S  # noqa: E402
-from scenes import Run, coastal_vessels, jagged_coast, mmsi_swaps, open_sea_vessels, run_scene, vessel_pairs  # noqa: E402
+from scenes import T_SCENE_S as T_S
+from scenes import (
+    Run,
+    coastal_vessels,
+    jagged_coast,
+    mmsi_swaps,
+    open_sea_vessels,
+    run_scene,
+    vessel_pairs,
+)
 
-from asvtwin.sensors import perturb_chart  # noqa: E402
-from asvtwin.tracking import Tracker, TrackerConfig, assign_tracks, nees_bounds  # noqa: E402
+from asvtwin.sensors import perturb_chart
+from asvtwin.tracking import Tracker, TrackerConfig, assign_tracks, nees_bounds
 
 WARMUP = 30
 
@@ -87,7 +96,7 @@ def score(run: Run, ais_mask: np.ndarray, nis: dict[str, list[float]]) -> dict[s
     }
 
 
-def run_set(kind: str, seeds: range, fusion: str) -> dict[str, float]:
+def run_set(kind: str, seeds: range, fusion: str, persistence: float) -> dict[str, float]:
     parts = []
     for seed in seeds:
         land = sensor_land = None
@@ -104,7 +113,9 @@ def run_set(kind: str, seeds: range, fusion: str) -> dict[str, float]:
         else:
             x0, L, ais = vessel_pairs(seed)
         band = 0.0 if kind == "near_coast_no_band" else TrackerConfig().chart_error_m
-        tracker = Tracker(TrackerConfig(fusion=fusion, chart_error_m=band), land=land)
+        cfg = TrackerConfig(fusion=fusion, chart_error_m=band,
+                            lidar=replace(TrackerConfig().lidar, depth_persistence=persistence))
+        tracker = Tracker(cfg, land=land)
         nis: dict[str, list[float]] = {"lidar": [], "ais": []}
         step = tracker.step
 
@@ -145,14 +156,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="2 seeds per scene (default 4)")
     ap.add_argument("--fusion", default=TrackerConfig().fusion)
+    ap.add_argument("--depth-persistence", type=float, default=TrackerConfig().lidar.depth_persistence,
+                    help="LidarModel.depth_persistence of the tracker (scans)")
     args = ap.parse_args()
     seeds = range(2 if args.quick else 4)
     t0 = time.perf_counter()
     kinds = ("open_sea", "close_pairs", "coast_layout_open", "near_coast", "near_coast_no_band")
-    res = {k: run_set(k, seeds, args.fusion) for k in kinds}
+    res = {k: run_set(k, seeds, args.fusion, args.depth_persistence) for k in kinds}
     o, c, co = res["open_sea"], res["near_coast"], res["coast_layout_open"]
     out = {
         "fusion": args.fusion,
+        "depth_persistence": args.depth_persistence,
         "seeds_per_scene": len(seeds),
         "nees_in_bounds": int(o["nees_in_bounds"] and c["nees_in_bounds"]),
         "nees_open_sea": o["nees_thinned"], "nees_near_coast": c["nees_thinned"],

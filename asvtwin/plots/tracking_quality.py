@@ -12,6 +12,7 @@ Built on matplotlib's Figure object (:func:`asvtwin.plots.base.new_figure`).
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -50,7 +51,7 @@ class AspectStudy:
         out: dict[str, dict[str, list[float]]] = {}
         for m in self.nees:
             out[m] = {"nees": [], "los_error_m": []}
-            for lo, hi in zip(e[:-1], e[1:]):
+            for lo, hi in itertools.pairwise(e):
                 s = (self.aspect_rad >= lo) & (self.aspect_rad < hi + (1e-9 if hi == e[-1] else 0.0))
                 out[m]["nees"].append(float(self.nees[m][s].mean()) if s.any() else float("nan"))
                 out[m]["los_error_m"].append(float(self.los_error_m[m][s].mean()) if s.any() else float("nan"))

@@ -96,7 +96,7 @@ def perturb_chart(
         we = warp_m * np.sin(k * n + ph[2]) * np.cos(k * e + ph[3])
         return np.column_stack([n + dn + wn, e + de + we])
 
-    out = []
+    out: list[Polygon] = []
     for p in keep:
         q = p.simplify(simplify_m, preserve_topology=True) if simplify_m > 0.0 else p
         q = shapely.transform(q, move)

@@ -45,6 +45,7 @@ from asvtwin.tracking.measurement import (
     LidarMeasurements,
     LidarModel,
     ais_measurements,
+    hull_centres,
     lidar_measurements,
 )
 from asvtwin.tracking.metrics import (
@@ -120,6 +121,7 @@ __all__ = [
     "gated_costs",
     "gnn_assign",
     "gospa",
+    "hull_centres",
     "kalman_update",
     "lidar_measurements",
     "nees",

@@ -1,7 +1,12 @@
-"""Measurement models: LiDAR clusters -> fitted centres, AIS reports -> position and velocity.
+"""Measurement models: LiDAR clusters -> hull centres, AIS reports -> position and velocity.
 
-**LiDAR.** Each cluster gets a Halir–Flusser ellipse fit; its centre is the position
-measurement. The covariance is built in the line-of-sight frame of the sensor,
+**LiDAR, default** (``LidarModel.centre = "hull_box"``): the centre of the hull from
+what the sensor sees of it, :mod:`asvtwin.tracking.hull_model`; every cluster also gets a
+Halir–Flusser ellipse fit for the hull's size. With a track's course as the hull axis,
+:func:`hull_centres` measures again (the tracker does so after association).
+
+**LiDAR, the paper's fitted centre** (``centre = "ellipse"``): the ellipse fit's centre
+is the position measurement. The covariance is built in the line-of-sight frame of the sensor,
 
 .. math::
 
@@ -53,13 +58,13 @@ from asvtwin.tracking.measurement_kernels import (
 )
 
 __all__ = [
+    "CENTRE_MODELS",
     "AisMeasurement",
     "AisMeasurementBatch",
     "AisMeasurements",
     "AisModel",
     "LidarMeasurements",
     "LidarModel",
-    "CENTRE_MODELS",
     "ais_measurements",
     "hull_centres",
     "lidar_measurements",
@@ -290,9 +295,8 @@ def hull_centres(clusters: Clusters, heading_rad: ArrayLike, heading_std_rad: Ar
     """
     mdl = model or LidarModel()
     k = len(clusters)
-    h = np.ascontiguousarray(np.broadcast_to(np.asarray(heading_rad, np.float64), (k,)))
-    hs = np.maximum(np.ascontiguousarray(np.broadcast_to(np.asarray(heading_std_rad, np.float64), (k,))),
-                    mdl.heading_floor_rad)
+    h = np.array(np.broadcast_to(np.asarray(heading_rad, np.float64), (k,)))  # a writeable copy: one kernel type
+    hs = np.maximum(np.broadcast_to(np.asarray(heading_std_rad, np.float64), (k,)), mdl.heading_floor_rad)
     origin = np.asarray(clusters.origin_ned, dtype=np.float64).reshape(2)
     if not np.isfinite(origin).all():
         raise StateError("hull-centre measurements need the sensor position (Clusters.origin_ned), actually: NaN")

@@ -11,18 +11,19 @@ from asvtwin.geo import LandMask
 from asvtwin.sensors import Lidar, LidarConfig
 from asvtwin.tracking import AisMeasurement, Tracker, TrackSnapshot, assign_tracks
 
-
 #: Duration of the seeded benchmark scenes [s].
 T_SCENE_S = 300
 
 
 def _clear(x: np.ndarray, L: np.ndarray) -> bool:
-    """Whether vessel ``x[-1]`` keeps clear of the others over the run: centres never closer
-    than the half-lengths plus 30 m (the scene tests tracking, not collisions)."""
+    """Whether vessel ``x[-1]`` keeps clear over the run of the others (centres never closer
+    than the half-lengths plus 30 m) and of the own ship at the origin (its half-length plus
+    50 m: the LiDAR's near field, where a hull fills a wide sector, is a separate study)."""
     t = np.arange(0.0, T_SCENE_S + 1.0, 5.0)
     p = x[:, None, :2] + x[:, None, 2:] * t[None, :, None]
     d = np.hypot(*(p[:-1] - p[-1]).transpose(2, 0, 1))
-    return bool((d.min(axis=1) > 0.5 * (L[:-1] + L[-1]) + 30.0).all())
+    own = np.hypot(*p[-1].T).min()
+    return bool((d.min(axis=1) > 0.5 * (L[:-1] + L[-1]) + 30.0).all() and own > 0.5 * L[-1] + 50.0)
 
 
 def _draw(rng: np.random.Generator, m: int, one) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[no-untyped-def]

@@ -154,7 +154,7 @@ def _numpy_halir_flusser(points: np.ndarray) -> tuple[np.ndarray, np.ndarray] | 
     Tm = -np.linalg.solve(S3, S2.T)
     M = S1 + S2 @ Tm
     M = np.array([M[2] / 2, -M[1], M[0] / 2])  # C1⁻¹ (S1 + S2 Tm)
-    w, V = np.linalg.eig(M)
+    _w, V = np.linalg.eig(M)
     V = np.real(V)
     cond = 4 * V[0] * V[2] - V[1] ** 2
     if not (cond > 0).any():

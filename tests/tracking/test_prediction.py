@@ -14,6 +14,7 @@ from asvtwin.tracking import (
     predictions_for_safety,
     uncertainty_polygon,
 )
+from asvtwin.tracking.prediction import COVARIANCE_INFLATION
 
 
 def _snapshot() -> TrackSnapshot:
@@ -58,11 +59,18 @@ def test_uncertainty_polygon_contains_the_path_and_widens() -> None:
 def test_safety_prediction_is_plain_and_conservative() -> None:
     s = _snapshot()
     times = 10.0 + np.linspace(0.0, 60.0, 13)
-    sp = predictions_for_safety(s, times, k_sigma=2.0)
+    sp = predictions_for_safety(s, times, k_sigma=2.0, covariance_inflation=1.0)
     assert sp.track_ids.tolist() == [7] and sp.positions.shape == (1, 13, 2)
     assert sp.clearance_radius_m[0, 0] == pytest.approx(20.0 + 2.0 * 2.0)
     assert np.all(np.diff(sp.clearance_radius_m[0]) > 0)
-    allp = predictions_for_safety(s, times, confirmed_only=False, default_hull_radius_m=12.0)
+    allp = predictions_for_safety(s, times, confirmed_only=False, default_hull_radius_m=12.0,
+                                  covariance_inflation=1.0)
     assert allp.clearance_radius_m[1, 0] == pytest.approx(12.0 + 4.0)
+    # by default the covariance is scaled by the measured NEES/dof (the tracker's fused
+    # covariance is ~1.6x too small in the worst benchmark scene): σ grows by √1.6
+    dflt = predictions_for_safety(s, times, k_sigma=2.0)
+    assert dflt.clearance_radius_m[0, 0] == pytest.approx(20.0 + 2.0 * np.sqrt(COVARIANCE_INFLATION) * 2.0)
+    with pytest.raises(ParameterError, match="covariance_inflation"):
+        predictions_for_safety(s, times, covariance_inflation=0.5)
     with pytest.raises(ParameterError, match="times_s"):
         predictions_for_safety(s, [5.0, 10.0])
