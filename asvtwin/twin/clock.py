@@ -171,6 +171,12 @@ class Clock:
             self._steps += int(n_ticks)
             self._cond.notify_all()
 
+    def start(self) -> None:
+        """Undo :meth:`stop`: ticks may run again."""
+        with self._cond:
+            self._stopped = False
+            self._anchor = None
+
     def stop(self) -> None:
         """Wake any waiting :meth:`wait_for_tick` and make it return False."""
         with self._cond:

@@ -623,6 +623,7 @@ class Twin:
         if self._thread is not None and self._thread.is_alive():
             raise StateError("the twin is already running in the background")
         self._stop.clear()
+        self.clock.start()
         self._thread = threading.Thread(target=self.run, args=(duration_s,), daemon=True,
                                         name=f"twin-{self.scenario.name}")
         self._thread.start()
