@@ -23,6 +23,7 @@ from asvtwin.sources.ais import (
     open_ais_source,
 )
 from asvtwin.sources.history import HistoryStore, SqliteHistory, replay_session
+from asvtwin.sources.recorder import HistoryRecorder
 from asvtwin.sources.weather import (
     MetNoClient,
     OfflineWeatherSource,
@@ -36,6 +37,7 @@ __all__ = [
     "AisReport",
     "AisSource",
     "AisStatic",
+    "HistoryRecorder",
     "HistoryStore",
     "MetNoClient",
     "OfflineWeatherSource",

@@ -12,9 +12,10 @@ An AIS source is an async iterator of validated messages (:class:`AisReport`,
 
 from __future__ import annotations
 
-from asvtwin.sources.ais.counters import ErrorCounter, ErrorKind, PipelineStats
+from asvtwin.sources.ais.counters import ErrorCounter, ErrorKind, NoticeKind, PipelineStats
+from asvtwin.sources.ais.fragments import FragmentAssembler
 from asvtwin.sources.ais.network import Backoff, TcpAisSource, UdpAisSource
-from asvtwin.sources.ais.pipeline import DYNAMIC_TYPES, STATIC_TYPES, AisPipeline
+from asvtwin.sources.ais.pipeline import DYNAMIC_TYPES, STATIC_TYPES, AisPipeline, LogCensus
 from asvtwin.sources.ais.registry import TargetRegistry, TargetSnapshot, nominal_report_interval_s
 from asvtwin.sources.ais.replay import FileReplaySource, HistoryReplaySource, SyntheticAisSource
 from asvtwin.sources.ais.reports import (
@@ -33,6 +34,8 @@ from asvtwin.sources.ais.synthetic import (
     encode_static,
     tag_block,
 )
+from asvtwin.sources.ais.tagblock import TagBlock, TagBlockError, parse_tag_block
+from asvtwin.sources.ais.timebase import StreamClock
 from asvtwin.sources.ais.traffic import FjordTraffic, TrafficVessel, default_fleet
 
 __all__ = [
@@ -49,15 +52,21 @@ __all__ = [
     "ErrorKind",
     "FileReplaySource",
     "FjordTraffic",
+    "FragmentAssembler",
     "HistoryReplaySource",
+    "LogCensus",
+    "NoticeKind",
     "Pacer",
     "PipelineSource",
     "PipelineStats",
     "ReportBatch",
     "SourceStatus",
+    "StreamClock",
     "SyntheticAisSource",
     "SyntheticLine",
     "SyntheticTraffic",
+    "TagBlock",
+    "TagBlockError",
     "TargetRegistry",
     "TargetSnapshot",
     "TcpAisSource",
@@ -68,6 +77,7 @@ __all__ = [
     "encode_static",
     "nominal_report_interval_s",
     "open_ais_source",
+    "parse_tag_block",
     "tag_block",
     "tag_time",
 ]
