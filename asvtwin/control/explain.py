@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from asvtwin.control.colreg import cpa_tcpa
 
-__all__ = ["bearing_words", "describe_change", "describe_obstacle"]
+__all__ = ["bearing_words", "describe_cause", "describe_change", "describe_obstacle"]
 
 _F8 = NDArray[np.float64]
 
@@ -87,3 +87,21 @@ def describe_obstacle(j: int, x: _F8, labels: list[str], moving: NDArray[np.bool
     q = a + t * e - x[:2]
     b = math.atan2(q[1], q[0]) - psi
     return f"the coast {bearing_words(b)}, {float(np.hypot(*q)):.1f} m"
+
+
+def describe_cause(x: _F8, margins_L: _F8, term_L: float, labels: list[str],
+                   moving: NDArray[np.bool_], centres: _F8, radii: _F8, segs: _F8,
+                   dt_s: float, d_safe_m: float, d_f_m: float, term_tol: float) -> str:
+    """Why u_L was not kept: the binding constraint of the plan that starts with it
+    (margins ``margins_L`` (N+1, m + k) [m], terminal margin ``term_L``)."""
+    N = margins_L.shape[0] - 1
+    if margins_L.shape[1] and float(margins_L[1:].min()) < 0:
+        k_c, j_c = np.unravel_index(int(np.argmin(margins_L[1:])), margins_L[1:].shape)
+        cause = describe_obstacle(int(j_c), x, labels, moving, centres, radii, segs, dt_s)
+        if k_c + 1 == N and margins_L[N, j_c] + d_f_m >= 0:
+            return (f"{cause}; u_L leaves no room to stop: the plan must end "
+                    f"≥ d_safe + d_f = {d_safe_m + d_f_m:.1f} m clear")
+        return f"{cause}; u_L comes within d_safe in {(k_c + 1) * dt_s:.0f} s"
+    if term_L < -term_tol:
+        return "u_L leaves no room to stop within d_f by the horizon's end"
+    return "u_L unsafe"

@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from asvtwin.control.backends import Backend, available_backends, make_backend
 from asvtwin.control.backends.ocp import DUMMY_DISTANCE_FACTOR, OcpSpec
 from asvtwin.control.colreg import EncounterLimits, classify_encounters
-from asvtwin.control.explain import describe_change, describe_obstacle
+from asvtwin.control.explain import describe_cause, describe_change, describe_obstacle
 from asvtwin.control.fallback import BackupPlan, Candidate, Fallback, candidate_inputs, damp_yaw
 from asvtwin.control.kernels import certify, rollout, warm_up
 from asvtwin.control.obstacles import CoastSegments, Obstacles, obstacle_labels, stage_circles
@@ -601,19 +601,8 @@ class SafetyFilter:
             else:
                 words.append("no intervention; no obstacle known")
         else:
-            if margins_L.shape[1] and float(margins_L[1:].min()) < 0:
-                k_c, j_c = np.unravel_index(int(np.argmin(margins_L[1:])), margins_L[1:].shape)
-                cause = describe_obstacle(int(j_c), x, labels, moving, centres, radii, segs,
-                                          dt)
-                if k_c + 1 == N and margins_L[N, j_c] + self.d_f_m >= 0:
-                    words.append(f"{cause}; u_L leaves no room to stop: the plan must end "
-                                 f"≥ d_safe + d_f = {self.d_safe_m + self.d_f_m:.1f} m clear")
-                else:
-                    words.append(f"{cause}; u_L comes within d_safe in {(k_c + 1) * dt:.0f} s")
-            elif term_L < -_TERM_TOL:
-                words.append("u_L leaves no room to stop within d_f by the horizon's end")
-            else:
-                words.append("u_L unsafe")
+            words.append(describe_cause(x, margins_L, term_L, labels, moving, centres, radii,
+                                        segs, dt, self.d_safe_m, self.d_f_m, _TERM_TOL))
             words.append(describe_change(uL, u0, self.u_lb, self.u_ub))
         if fb is not Fallback.NONE:
             best_alt = ", ".join(f"{k} {c:.1f} m" for k, _, c, _ in scored[:4])
