@@ -374,7 +374,7 @@ class Twin:
             self.ais_feed_alive = bool(args["alive"])
             if not self.ais_feed_alive:
                 self.scheduler.note("ais", f"AIS feed cut at t={t:.1f} s")
-        elif command == "feed_nmea":
+        elif command == "feed_nmea" and self._inputs is None:  # a re-run has them recorded
             self._extra_lines.extend(args["lines"])
         if command not in ("pause", "resume", "set_speed"):
             self._events.append(f"t={t:.1f} s: {command}")

@@ -23,7 +23,8 @@ COMPONENTS = {"ais", "weather", "lidar", "tracker", "observer", "controller", "f
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
-    """60 s of the base scenario, recorded, with a vessel injected and a route change."""
+    """60 s of the base scenario, recorded, with a vessel injected, a garbage line fed and a
+    route change."""
     path = tmp_path_factory.mktemp("rec") / "run.mcap"
     twin = Twin(scenario(), record_path=path, record_chunk_bytes=16384)
     snaps = []
@@ -34,6 +35,8 @@ def recorded(tmp_path_factory):
                 "name": "DELTA", "mmsi": 257000004, "ais_class": "A", "length_m": 40.0,
                 "beam_m": 9.0, "start": {"north_m": 3400.0, "east_m": -1900.0},
                 "heading_deg": 90.0, "speed_kn": 5.0}))
+        if k == 200:
+            twin.feed_nmea(["!AIVDM,1,1,,A,garbage,0*00"])
         if k == 300:
             twin.set_route([[4000.0, -1500.0], [5000.0, -1500.0]])
         twin.step()
@@ -97,7 +100,7 @@ def test_recording_reruns_from_its_raw_inputs_to_the_same_snapshots(recorded):
     assert rec.summary["ticks"] == 600
     assert sum(1 for _ in rec.iter_messages(topic="/twin/nmea")) > 10
     cmds = [orjson.loads(d)["command"] for _, d in rec.iter_messages(topic="/twin/commands")]
-    assert cmds == ["inject_vessel", "set_route"]
+    assert cmds == ["inject_vessel", "feed_nmea", "set_route"]
     assert rec.message_at(59.0) == snaps[-1][1]
     res = verify_recording(path)
     assert res["identical"], res
