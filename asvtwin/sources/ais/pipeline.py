@@ -288,6 +288,8 @@ class AisPipeline:
         recent = stream.recent
         n_recent_max = 2 * stream.window
         lat_lo, lat_hi, lon_lo, lon_hi = self._box
+        starts, armour, min_bits = _STARTS, _ARMOUR, _MIN_BITS  # locals: read per line
+        t_min, t_max = T_MIN_UNIX_S, T_MAX_UNIX_S
         bounds = self._bounds
         dedup_s = self._dedup_s
         hwm = self._hwm
@@ -321,7 +323,7 @@ class AisPipeline:
                 continue
             n_lines += 1
             # --- 1. sentence: ASCII, resync after garbage, tag block, checksum, fields
-            if raw[0] not in _STARTS or not raw.isascii():
+            if raw[0] not in starts or not raw.isascii():
                 k = _resync(raw)
                 if k <= 0:
                     count(ErrorKind.NON_ASCII if not raw.isascii() else ErrorKind.TRUNCATED,
@@ -353,7 +355,7 @@ class AisPipeline:
                             cache.clear()
                         cache[tag] = parsed
                         t_tag = parsed[0] if len(parsed) == 3 else None
-                        if t_tag is not None and T_MIN_UNIX_S <= t_tag <= T_MAX_UNIX_S:
+                        if t_tag is not None and t_min <= t_tag <= t_max:
                             recent.append(t_tag)  # robust stream time: every distinct time
                             if len(recent) >= n_recent_max:
                                 stream.update()
@@ -405,8 +407,8 @@ class AisPipeline:
             if body[star - 2] != 44 or not 48 <= body[star - 1] <= 53:  # pyais reads "x" as 0
                 count(ErrorKind.MALFORMED, raw, "fill bits must be one digit 0..5")
                 continue
-            if msg.payload.translate(None, _ARMOUR):
-                bad = msg.payload.translate(None, _ARMOUR)[:1].decode("ascii", "replace")
+            if msg.payload.translate(None, armour):
+                bad = msg.payload.translate(None, armour)[:1].decode("ascii", "replace")
                 count(ErrorKind.DECODE_ERROR, raw,
                       f"payload character {bad!r} is outside the AIS 6-bit alphabet")
                 continue
@@ -415,7 +417,7 @@ class AisPipeline:
             if t is not None and t > frags.deadline and (ref is None or t <= ref + lead):
                 frags.expire(t)
             if census is not None:
-                if t is not None and T_MIN_UNIX_S <= t <= T_MAX_UNIX_S:
+                if t is not None and t_min <= t <= t_max:
                     census.see_time(t)
                 else:
                     census.untimed_lines += 1
@@ -427,13 +429,13 @@ class AisPipeline:
                 msg, t, station = done
             payload = msg.payload
             ais_id = msg.ais_id
-            if ais_id not in _MIN_BITS and not payload:  # (an empty payload reads as type 0)
+            if ais_id not in min_bits and not payload:  # (an empty payload reads as type 0)
                 count(ErrorKind.SHORT_PAYLOAD, raw, "empty payload")
                 continue
             by_type[ais_id] = by_type.get(ais_id, 0) + 1
             if census is not None and len(msg.bv) >= 38:
                 census.mmsis.add(msg.bv.get(8, 30))
-            if ais_id not in _MIN_BITS:
+            if ais_id not in min_bits:
                 continue  # a type the twin does not use: counted by type only
             # --- 3. duplicates (the hwm test keeps this independent of the batch size: the
             # trim at the end of a batch only drops payloads this test would ignore anyway)
@@ -446,9 +448,9 @@ class AisPipeline:
                     del seen[payload]  # re-insert at the end: the dict stays in time order
                 seen[payload] = t
             # --- 4. decode
-            if len(msg.bv) < _MIN_BITS[ais_id]:
+            if len(msg.bv) < min_bits[ais_id]:
                 count(ErrorKind.SHORT_PAYLOAD, raw,
-                      f"type {ais_id} needs {_MIN_BITS[ais_id]} bits, actually {len(msg.bv)}")
+                      f"type {ais_id} needs {min_bits[ais_id]} bits, actually {len(msg.bv)}")
                 continue
             try:
                 m = msg.decode()
@@ -467,7 +469,7 @@ class AisPipeline:
                     continue
                 notice(NoticeKind.UNTIMED, raw, "no time: accepted without time checks")
                 t = _NAN
-            elif not T_MIN_UNIX_S <= t <= T_MAX_UNIX_S:
+            elif not t_min <= t <= t_max:
                 count(ErrorKind.INVALID_TIME, raw, f"time in 2000..2100 expected, actually {t}")
                 continue
             if ais_id == 5 or ais_id == 24 or ais_id == 19:
@@ -477,14 +479,15 @@ class AisPipeline:
                     continue
             lat = m.lat
             lon = m.lon
-            if lat == 91.0 or lon == 181.0:
-                count(ErrorKind.POSITION_UNAVAILABLE, raw, f"lat {lat}, lon {lon}")
-                continue
-            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-                count(ErrorKind.INVALID_POSITION, raw,
-                      f"lat in [-90, 90] and lon in [-180, 180] expected, actually {lat}, {lon}")
-                continue
+            # inside the scene's box (the usual case) is valid and available; outside it, why
             if not (lat_lo <= lat <= lat_hi and lon_lo <= lon <= lon_hi):
+                if lat == 91.0 or lon == 181.0:
+                    count(ErrorKind.POSITION_UNAVAILABLE, raw, f"lat {lat}, lon {lon}")
+                    continue
+                if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+                    count(ErrorKind.INVALID_POSITION, raw, "lat in [-90, 90] and lon in "
+                          f"[-180, 180] expected, actually {lat}, {lon}")
+                    continue
                 if bounds:
                     count(ErrorKind.OUTSIDE_SCENE, raw,
                           f"lat {lat_lo}..{lat_hi}, lon {lon_lo}..{lon_hi} expected, "
