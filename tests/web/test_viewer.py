@@ -134,6 +134,7 @@ def test_chart_3d_table_and_status_are_drawn(live):
     assert v["view3d"]["frames"] >= 1 and v["view3d"]["hulls"] == n + 1
     assert v["view3d"]["terrainVertices"] > 10_000
     assert v["table"]["rows"] == n and v["table"]["dangerous"] >= 1
+    save(page.screenshot(), "viewer.png")  # first: element shots scroll the page
     chart = save(page.locator("#chart-pane").screenshot(), "viewer-chart.png")
     assert count_colour(chart, (26, 154, 42)) > 30  # the plan, green
     assert count_colour(chart, (224, 20, 30)) > 30  # its critical stages and the alarm, red
@@ -142,7 +143,6 @@ def test_chart_3d_table_and_status_are_drawn(live):
     assert count_colour(view3d, (224, 106, 16), tol=60) > 20  # the own ship's hull from astern
     assert view3d.std() > 10  # terrain, water and sky, not a blank canvas
     save(page.locator("#table-pane").screenshot(), "viewer-table.png")
-    save(page.screenshot(), "viewer.png")
     status = page.locator("#status").inner_text()
     for level in ("L0", "L1", "L2", "L3", "L4", "L5"):
         assert level in status

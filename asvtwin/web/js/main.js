@@ -134,7 +134,18 @@ async function main() {
 
   // controls
   let latest = null, fresh = false;
-  $('btn-pause').addEventListener('click', () => control(latest?.clock.paused ? 'resume' : 'pause'));
+  // paused or not: the snapshot says so, but a twin may publish nothing while paused, so a
+  // successful pause/resume counts until a newer snapshot arrives
+  let pauseIntent = null;
+  const isPaused = () => (pauseIntent && (!latest || latest.seq <= pauseIntent.seq)
+    ? pauseIntent.paused : !!latest?.clock.paused);
+  V.isPaused = isPaused;
+  $('btn-pause').addEventListener('click', async () => {
+    const action = isPaused() ? 'resume' : 'pause';
+    const answer = await control(action);
+    if (answer?.ok) pauseIntent = { paused: action === 'pause', seq: latest?.seq ?? -1 };
+    $('btn-pause').textContent = isPaused() ? 'Resume' : 'Pause';
+  });
   $('btn-step').addEventListener('click', () => control('step', { n_ticks: 1 }));
   $('sel-speed').addEventListener('change', (e) => control('speed', { factor: e.target.value === 'max' ? 'max' : Number(e.target.value) }));
   $('chk-filter').addEventListener('change', (e) => control('filter', { enabled: e.target.checked }));
@@ -201,8 +212,8 @@ async function main() {
       V.targets = targets.length;
       chart.update(latest, targets);
       view.update(latest, targets);
-      $('clock').textContent = `t = ${latest.t_s.toFixed(1)} s${latest.clock.paused ? ' (paused)' : ''}`;
-      $('btn-pause').textContent = latest.clock.paused ? 'Resume' : 'Pause';
+      $('clock').textContent = `t = ${latest.t_s.toFixed(1)} s${isPaused() ? ' (paused)' : ''}`;
+      $('btn-pause').textContent = isPaused() ? 'Resume' : 'Pause';
       if (replay && !seeking) { $('seek').value = String(latest.t_s); $('seek-label').textContent = `${latest.t_s.toFixed(1)} / ${info.duration_s.toFixed(1)} s`; }
     }
     if (latest && now - lastSlow >= 500) {
