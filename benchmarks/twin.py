@@ -156,5 +156,27 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
     return out
 
 
+def _quiet_stdout_main() -> dict[str, object]:
+    """Run :func:`main` with file descriptor 1 pointed at stderr (a solver's C library
+    prints its warnings to stdout), then print the one JSON object on the real stdout."""
+    import io
+    import os
+
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    buf = io.StringIO()
+    real, sys.stdout = sys.stdout, buf
+    try:
+        out = main()
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+        sys.stdout = real
+    print(buf.getvalue().strip().splitlines()[-1])
+    return out
+
+
 if __name__ == "__main__":
-    sys.exit(0 if main() else 1)
+    sys.exit(0 if _quiet_stdout_main() else 1)

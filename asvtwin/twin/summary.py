@@ -120,18 +120,26 @@ class RunSummary:
 
 
 class _Zone:
+    """Running sums (constant memory over any run length)."""
+
     def __init__(self) -> None:
-        self.sq: list[float] = []
-        self.nees: list[float] = []
+        self.n = 0
+        self.sum_sq = 0.0
+        self.sum_nees = 0.0
         self.truths = 0
 
+    def add(self, err2: NDArray[np.float64], nees_values: NDArray[np.float64]) -> None:
+        self.n += int(err2.size)
+        self.sum_sq += float(np.sum(err2))
+        self.sum_nees += float(np.sum(nees_values))
+
     def result(self) -> dict[str, Any]:
-        n = len(self.sq)
+        n = self.n
         lo, hi = nees_bounds(4, max(n, 1))
         return {"samples": n, "truth_samples": self.truths,
                 "coverage": n / self.truths if self.truths else float("nan"),
-                "rmse_m": math.sqrt(float(np.mean(self.sq))) if n else float("nan"),
-                "nees_mean": float(np.mean(self.nees)) if n else float("nan"),
+                "rmse_m": math.sqrt(self.sum_sq / n) if n else float("nan"),
+                "nees_mean": self.sum_nees / n if n else float("nan"),
                 "nees_low": lo, "nees_high": hi}
 
 
@@ -171,7 +179,8 @@ class RunMetrics:
         self.groundings = 0
         self.collision_events: list[str] = []
         self.zones = {"open_sea": _Zone(), "near_coast": _Zone()}
-        self.obs_sq: list[NDArray[np.float64]] = []
+        self.obs_n = 0
+        self.obs_sum_sq = np.zeros(3)
         self.obs_invalid = 0
         self.max_cte = 0.0
 
@@ -235,10 +244,9 @@ class RunMetrics:
                                  s * x[:, 3] + c * x[:, 4]])
         err2 = np.sum((conf.mean[r, :2] - true4[:, :2]) ** 2, axis=1)
         e = nees(conf.mean[r], conf.cov[r], true4)
-        for k, i in enumerate(hit.tolist()):
-            z = self.zones["near_coast" if near[i] else "open_sea"]
-            z.sq.append(float(err2[k]))
-            z.nees.append(float(e[k]))
+        nc = near[hit]
+        self.zones["near_coast"].add(err2[nc], e[nc])
+        self.zones["open_sea"].add(err2[~nc], e[~nc])
 
     def observer(self, t_s: float, d_hat: _F8, d_true: _F8, valid: bool) -> None:
         """Score one observer sample."""
@@ -246,7 +254,8 @@ class RunMetrics:
             self.obs_invalid += 1
             return
         if t_s >= self.observer_settle_s:
-            self.obs_sq.append((d_hat - d_true) ** 2)
+            self.obs_n += 1
+            self.obs_sum_sq += (d_hat - d_true) ** 2
 
     def cte(self, cte_m: float) -> None:
         """Track the largest cross-track error."""
@@ -274,9 +283,9 @@ class RunMetrics:
                                "pass": self.max_cte <= criteria.max_cte_m}
         crit["no_collision"] = {"value": self.collisions, "limit": 0, "pass": self.collisions == 0}
         crit["no_grounding"] = {"value": self.groundings, "limit": 0, "pass": self.groundings == 0}
-        if self.obs_sq:
-            rm = np.sqrt(np.mean(np.asarray(self.obs_sq), axis=0))
-            obs = {"samples": len(self.obs_sq), "invalid_samples": self.obs_invalid,
+        if self.obs_n:
+            rm = np.sqrt(self.obs_sum_sq / self.obs_n)
+            obs = {"samples": self.obs_n, "invalid_samples": self.obs_invalid,
                    "settle_s": self.observer_settle_s,
                    "rmse": {"surge_N": float(rm[0]), "sway_N": float(rm[1]),
                             "yaw_Nm": float(rm[2])}}
