@@ -26,7 +26,7 @@ import warnings
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from asvtwin.control.backends import Backend, available_backends, make_backend
+from asvtwin.control.backends import Backend, available_backends, backend_lock, make_backend
 from asvtwin.control.backends.ocp import DUMMY_DISTANCE_FACTOR, OcpSpec
 from asvtwin.control.colreg import EncounterLimits, classify_encounters
 from asvtwin.control.explain import describe_cause, describe_change, describe_obstacle
@@ -226,7 +226,8 @@ class SafetyFilter:
         """Forget the last plan and the solver's iterate (new episode)."""
         self._plan, self._last, self._t = None, None, None
         self._solved_last = False
-        self.backend.reset()
+        with backend_lock(self.backend):
+            self.backend.reset()
 
     def _stage_params(self, x: _F8, d_hat: _F8, centres: _F8, radii: _F8, segs: _F8,
                       paths: list[_F8]) -> tuple[_F8, NDArray[np.intp], NDArray[np.intp]]:
@@ -412,7 +413,8 @@ class SafetyFilter:
         for rnd in range(1 + cfg.uncertified_retries):
             for _ in range(attempts):
                 try:
-                    raw = self.backend.solve(x, uL, P, xg, ug)
+                    with backend_lock(self.backend):  # shared per process: one at a time
+                        raw = self.backend.solve(x, uL, P, xg, ug)
                     U = np.clip(raw.u, self.u_lb, self.u_ub)
                     status, ok = raw.status, raw.success
                     iters += raw.iterations

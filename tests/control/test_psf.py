@@ -212,3 +212,30 @@ def test_failed_acados_qp_does_not_poison_later_solves(params):
     finally:
         b._solver.reset = b._solver_reset
         psf.reset()
+
+
+def test_two_filters_in_two_threads_share_the_solver_safely(params, default_backend):
+    """Filters with the same problem share one compiled solver per process; two twins
+    calling from two threads are serialised on it (acados crashed otherwise)."""
+    import threading
+
+    fs = [SafetyFilter(params, config=PsfConfig(backend=default_backend)) for _ in range(2)]
+    errors: list[BaseException] = []
+
+    def run(f, seed):
+        rng = np.random.default_rng(seed)
+        try:
+            for k in range(30):
+                x = np.array([0, 0, 0, rng.uniform(0.2, 0.5), 0, 0])
+                rock = CircleObstacles([[rng.uniform(9, 14), rng.uniform(-1, 1)]], [2.0])
+                r = f.filter(x, FULL_AHEAD, rock, t_s=0.5 * k)
+                assert np.all(np.isfinite(r.u0))
+        except BaseException as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+
+    threads = [threading.Thread(target=run, args=(f, i)) for i, f in enumerate(fs)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors, errors

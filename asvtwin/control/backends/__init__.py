@@ -8,6 +8,7 @@ process and keeps it: a filter never rebuilds its solver in a loop.
 from __future__ import annotations
 
 import logging
+import threading
 
 from asvtwin.control.backends.base import Backend, RawSolution
 from asvtwin.control.backends.ocp import OcpSpec, cache_dir
@@ -19,6 +20,7 @@ __all__ = [
     "OcpSpec",
     "RawSolution",
     "available_backends",
+    "backend_lock",
     "cache_dir",
     "make_backend",
 ]
@@ -29,6 +31,16 @@ log = logging.getLogger(__name__)
 BACKENDS = ("acados", "casadi-ipopt", "casadi-fatrop")
 
 _BUILT: dict[tuple[str, str], Backend] = {}
+_LOCKS: dict[int, threading.Lock] = {}
+_LOCKS_GUARD = threading.Lock()
+
+
+def backend_lock(backend: object) -> threading.Lock:
+    """The lock that serialises calls into ``backend``: filters with the same problem share
+    one compiled solver per process, and two twins solving at once from two threads must
+    not enter it together (acados' solver memory is not thread-safe)."""
+    with _LOCKS_GUARD:
+        return _LOCKS.setdefault(id(backend), threading.Lock())
 
 
 def available_backends() -> list[str]:
