@@ -36,9 +36,9 @@ class ControlError(AsvTwinError, ValueError):
     server answers HTTP 409 with this message."""
 
 #: The actions a live twin understands (contract of ``Twin``'s thread-safe controls).
-LIVE_ACTIONS = ("pause", "resume", "speed", "step", "filter", "route", "inject", "wind")
+LIVE_ACTIONS: tuple[str, ...] = ("pause", "resume", "speed", "step", "filter", "route", "inject", "wind")
 #: The actions a replay understands.
-REPLAY_ACTIONS = ("pause", "resume", "speed", "step", "seek")
+REPLAY_ACTIONS: tuple[str, ...] = ("pause", "resume", "speed", "step", "seek")
 
 
 class Frame:
@@ -118,7 +118,7 @@ class TwinFeed:
     ``start_background()``/``stop()`` and the thread-safe controls)."""
 
     kind = "live"
-    actions = LIVE_ACTIONS
+    actions: tuple[str, ...] = LIVE_ACTIONS
 
     def __init__(self, twin: Any, *, scene: Scene | None = None, manage_loop: bool = True) -> None:
         self.twin = twin
@@ -203,7 +203,7 @@ class RecordingFeed:
     """
 
     kind = "replay"
-    actions = REPLAY_ACTIONS
+    actions: tuple[str, ...] = REPLAY_ACTIONS
 
     def __init__(self, recording: Any, *, scene: Scene | None = None,
                  clock: Callable[[], float] = time.monotonic) -> None:

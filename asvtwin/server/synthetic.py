@@ -56,7 +56,7 @@ class SyntheticFeed:
     """
 
     kind = "synthetic"
-    actions = LIVE_ACTIONS
+    actions: tuple[str, ...] = LIVE_ACTIONS
 
     def __init__(self, n_targets: int = 12, *, seed: int = 0, tick_hz: float = 10.0,
                  dt_s: float = 0.1, lidar_rays: int = 360, scene: Scene | None = None) -> None:
