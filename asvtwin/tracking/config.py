@@ -47,7 +47,10 @@ class TrackerConfig:
     merge_probability : float
         Two tracks whose positions and velocities are this close in χ² terms ...
     merge_after : int
-        ... for this many ticks in a row are merged (duplicates of one vessel).
+        ... for this many ticks in a row are merged (duplicates of one vessel) ...
+    merge_distance_m : float
+        ... if their positions are also within this distance [m] (two vessels abreast
+        with wide covariances pass the χ² test but are not one).
     identity_gate_probability : float
         χ² gate of a LiDAR cluster against the AIS-only estimate of an MMSI-tied track:
         outside it the cluster cannot update that track (the AIS identity is evidence).
@@ -82,6 +85,7 @@ class TrackerConfig:
     ais_reseed_after: int = 3
     merge_probability: float = 0.99
     merge_after: int = 3
+    merge_distance_m: float = 10.0
     identity_gate_probability: float = 0.9999
     identity_margin: float = 6.0
     chart_error_m: float = 10.0
@@ -99,7 +103,7 @@ class TrackerConfig:
                 f"TrackerConfig needs 1 <= confirm_m <= confirm_n <= 30, actually: m={self.confirm_m}, n={self.confirm_n}")
         for name in ("q", "max_coast_s", "max_coast_ais_s", "max_position_std_m", "init_velocity_std_m_s",
                      "min_separation_m", "fusion_window_s", "course_min_speed_m_s", "course_max_std_rad",
-                     "identity_margin", "chart_error_m"):
+                     "identity_margin", "chart_error_m", "merge_distance_m"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0.0):
                 raise ParameterError(f"TrackerConfig.{name} must be finite and >= 0, actually: {v!r}")

@@ -90,13 +90,14 @@ def _axis(near, far, sign, e, g_near, g_far_lo, g_far_hi, kappa):  # type: ignor
     m_near = 0.5 * g_near
     v_near = g_near * g_near / 12.0
     c = 0.5 * (near + far) + sign * 0.5 * (m_far - m_near)
-    return c, 0.25 * (kappa * v_far + v_near)
+    return c, 0.25 * (kappa * v_far + v_near), 0.25 * (v_far + v_near)
 
 
 @njit(cache=True)
 def hull_box_kernel(points, offsets, origin, heading, heading_std, prm, only_known=False):  # type: ignore[no-untyped-def]
-    """Centres ``z (k, 2)``, covariances ``R (k, 2, 2)`` and box extents ``ext (k, 2)``
-    ``[along, across]`` of all clusters.
+    """Centres ``z (k, 2)``, covariances ``R (k, 2, 2)`` (the unseen-depth part scaled by
+    ``kappa``: for a filter), box extents ``ext (k, 2)`` ``[along, across]`` and the
+    single-scan covariances ``R1`` (kappa = 1: for gates) of all clusters.
 
     ``heading[i]`` is the hull axis of cluster ``i`` [rad] (NaN: unknown, the box
     orientation is used and the axes are ambiguous), ``heading_std`` its standard
@@ -110,6 +111,7 @@ def hull_box_kernel(points, offsets, origin, heading, heading_std, prm, only_kno
     k = offsets.shape[0] - 1
     z = np.full((k, 2), np.nan)
     R = np.full((k, 2, 2), np.nan)
+    R1 = np.full((k, 2, 2), np.nan)
     ext = np.full((k, 2), np.nan)
     o0, o1 = origin[0], origin[1]
     for i in range(k):
@@ -203,12 +205,12 @@ def hull_box_kernel(points, offsets, origin, heading, heading_std, prm, only_kno
         # along h
         hi = min(dh, max(L_hi - es, 0.0))
         lo = min(max(L_lo - es, 0.0), hi)
-        zs, vs = _axis(near_h, far_h, sign_h, es, min(dh, ktip * d), lo + tap_lo, hi + tap_hi, kappa)
+        zs, vs, vs1 = _axis(near_h, far_h, sign_h, es, min(dh, ktip * d), lo + tap_lo, hi + tap_hi, kappa)
         L_max = es + hi + tap_hi
         # along n
         hi = min(dn, max(B_hi - et, 0.0))
         lo = min(max(B_lo - et, 0.0), hi)
-        zt, vt = _axis(near_n, far_n, sign_n, et, min(dn, ktip * d), lo + half_lo, hi + half_hi, kappa)
+        zt, vt, vt1 = _axis(near_n, far_n, sign_n, et, min(dn, ktip * d), lo + half_lo, hi + half_hi, kappa)
         B_max = et + hi + half_hi
         z[i, 0] = zs * ch - zt * sh
         z[i, 1] = zs * sh + zt * ch
@@ -221,4 +223,7 @@ def hull_box_kernel(points, offsets, origin, heading, heading_std, prm, only_kno
         R[i, 0, 0] = ch * ch * vs + sh * sh * vt + l0 * l0 * vr + l1 * l1 * vb + iso
         R[i, 1, 1] = sh * sh * vs + ch * ch * vt + l1 * l1 * vr + l0 * l0 * vb + iso
         R[i, 0, 1] = R[i, 1, 0] = ch * sh * (vs - vt) + l0 * l1 * (vr - vb)
-    return z, R, ext
+        R1[i, 0, 0] = ch * ch * vs1 + sh * sh * vt1 + l0 * l0 * vr + l1 * l1 * vb + iso
+        R1[i, 1, 1] = sh * sh * vs1 + ch * ch * vt1 + l1 * l1 * vr + l0 * l0 * vb + iso
+        R1[i, 0, 1] = R1[i, 1, 0] = ch * sh * (vs1 - vt1) + l0 * l1 * (vr - vb)
+    return z, R, ext, R1

@@ -250,6 +250,10 @@ class LidarMeasurements:
     extent_m : ndarray, shape (k, 2)
         With ``centre="hull_box"``: visible extents ``[along, across]`` the hull axis [m]
         (NaN otherwise).
+    R_update : ndarray, shape (k, 2, 2), or None
+        The covariance for a filter update: ``R`` with the unseen-depth part scaled by
+        ``LidarModel.depth_persistence`` (None: ``R`` itself). ``R`` (one scan) is for
+        gates and association.
     """
 
     z: _F8
@@ -257,6 +261,7 @@ class LidarMeasurements:
     fits: EllipseFits
     used_fit: NDArray[np.bool_]
     extent_m: _F8 | None = None
+    R_update: _F8 | None = None
 
     def __len__(self) -> int:
         return int(self.z.shape[0])
@@ -302,7 +307,8 @@ def hull_centres(clusters: Clusters, heading_rad: ArrayLike, heading_std_rad: Ar
         raise StateError("hull-centre measurements need the sensor position (Clusters.origin_ned), actually: NaN")
     points = np.ascontiguousarray(clusters.points, dtype=np.float64).reshape(-1, 2)
     offsets = np.ascontiguousarray(clusters.offsets, dtype=np.int64)
-    return hull_box_kernel(points, offsets, origin, h, hs, _hull_prm(mdl), only_known)
+    z, R, ext, _ = hull_box_kernel(points, offsets, origin, h, hs, _hull_prm(mdl), only_known)
+    return z, R, ext
 
 
 def lidar_measurements(clusters: Clusters, model: LidarModel | None = None) -> LidarMeasurements:
@@ -339,7 +345,10 @@ def lidar_measurements(clusters: Clusters, model: LidarModel | None = None) -> L
     ext = np.full((len(z), 2), np.nan)
     if mdl.centre == "hull_box" and len(z):
         k = len(z)
-        z, R, ext = hull_box_kernel(points, offsets, origin, np.full(k, np.nan), np.zeros(k), _hull_prm(mdl), False)
+        z, Rf, ext, R = hull_box_kernel(points, offsets, origin, np.full(k, np.nan), np.zeros(k), _hull_prm(mdl),
+                                        False)
+        return LidarMeasurements(z=z, R=R, fits=EllipseFits.from_array(out), used_fit=use, extent_m=ext,
+                                 R_update=Rf)
     return LidarMeasurements(z=z, R=R, fits=EllipseFits.from_array(out), used_fit=use, extent_m=ext)
 
 

@@ -177,9 +177,9 @@ class SafetyPrediction:
 
 
 #: Measured ratio of the fused position NEES to its 2 dof in the worst scene of
-#: ``benchmarks/tracking_quality.py`` (product fusion: 3.24 / 2 near the coast, 3.15 / 2 in
-#: close pairs): the safety filter's covariance is scaled by it so its clearance rests on
-#: a consistent covariance rather than the tracker's slightly overconfident one.
+#: ``benchmarks/tracking_quality.py`` (product fusion: 2.89 / 2 = 1.45 in the near-coast
+#: layout, rounded up): the safety filter's covariance is scaled by it so its clearance
+#: rests on a consistent covariance rather than the tracker's slightly overconfident one.
 COVARIANCE_INFLATION = 1.6
 
 

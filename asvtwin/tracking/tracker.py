@@ -210,7 +210,7 @@ class Tracker:
                 self._ais_identity_gate(t, cost, m.z, m.R)
                 rows, cols = gnn_assign(cost)
                 a["gotL"][rows] = True
-                zm, Rm = self._remeasure_with_course(cl, m.z, m.R, rows, cols)
+                zm, Rm = self._remeasure_with_course(cl, m.z, m.R if m.R_update is None else m.R_update, rows, cols)
                 zL[rows], RL[rows] = zm[cols], Rm[cols]
                 self.last_nis["lidar"] = position_mahalanobis(zL[rows] - a["x"][rows, :2], a["P"][rows, :2, :2],
                                                               RL[rows])
@@ -476,6 +476,10 @@ class Tracker:
             self._pairs = {}
             return
         ii, jj = coincident(a["x"], a["P"], a["mmsi"], self._gM)
+        # and physically one place: two vessels abreast with wide covariances are
+        # "coincident" in χ² terms but not within merge_distance_m of each other
+        close = np.hypot(*(a["x"][ii, :2] - a["x"][jj, :2]).T) <= cfg.merge_distance_m
+        ii, jj = ii[close], jj[close]
         pairs: dict[tuple[int, int], int] = {}
         drop = np.zeros(a["x"].shape[0], bool)
         for i, j in zip(ii.tolist(), jj.tolist()):
@@ -497,7 +501,12 @@ class Tracker:
     def _start_from_lidar(self, t: float, z: _F8, R: _F8) -> None:
         a, cfg = self._a, self.config
         if a["x"].shape[0]:
-            near = near_tracks(z, R, a["x"], a["P"], np.ascontiguousarray(a["axes"][:, 0]),
+            # a track tied to an MMSI with a fresh report is where its AIS says: a cluster
+            # near its fused estimate but away from its AIS-only one is another vessel
+            fresh = (a["mmsi"] >= 0) & a["hasA"] & (t - a["tA"] <= cfg.fusion_window_s)
+            xs = np.where(fresh[:, None], a["xA"], a["x"])
+            Ps = np.where(fresh[:, None, None], a["PA"], a["P"])
+            near = near_tracks(z, R, xs, Ps, np.ascontiguousarray(a["axes"][:, 0]),
                                float(cfg.min_separation_m), self._gL)
             self._count("init_suppressed", int(near.sum()))
             z, R = z[~near], R[~near]
