@@ -59,6 +59,7 @@ from asvtwin.tracking.metrics import (
     track_breaks,
 )
 from asvtwin.tracking.prediction import (
+    COVARIANCE_INFLATION,
     SafetyPrediction,
     TrackPrediction,
     predict_tracks,
@@ -69,6 +70,7 @@ from asvtwin.tracking.snapshot import TRACK_STATUS, TrackSnapshot
 from asvtwin.tracking.tracker import Tracker
 
 __all__ = [
+    "COVARIANCE_INFLATION",
     "FIT_COLLINEAR",
     "FIT_NO_ELLIPSE",
     # ellipse fits
