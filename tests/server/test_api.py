@@ -215,3 +215,13 @@ def test_scene_document_matches_an_independent_projection(client):
     on_land = scene.land.contains(pts)
     assert (h[i, j][~on_land] == 0).all() and (h[i, j][on_land] >= 0).all()
     assert "no elevation model" in rl["note"]
+
+
+def test_a_server_bound_beyond_loopback_gets_a_token(feed):
+    from asvtwin.server.app import _make_server
+
+    local = _make_server(feed, "127.0.0.1", 0, None, "error")
+    assert local.asvtwin_token is None
+    wide = _make_server(feed, "0.0.0.0", 0, None, "error")  # built, never started here
+    assert isinstance(wide.asvtwin_token, str) and len(wide.asvtwin_token) >= 20
+    assert _make_server(feed, "0.0.0.0", 0, "given", "error").asvtwin_token == "given"
