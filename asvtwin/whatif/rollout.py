@@ -1,0 +1,447 @@
+"""Monte Carlo rollouts of a fork: every alternative × every draw, batched in one simulator.
+
+The futures of all alternatives and all draws are one :class:`~asvtwin.vessel.BatchSimulator`
+of own ships (n = alternatives × rollouts) stepped together, with one batched autopilot;
+the targets move kinematically (the tracker's constant-velocity model plus an *intent*),
+vectorised over draws. The same draws are used for every alternative (common random
+numbers: the difference between two alternatives is not blurred by different draws).
+
+Draws (:func:`draw_samples`, from a ``numpy.random.Generator``):
+
+- each target's state from its track, ``N(mean, cov)`` of ``[x, y, v_x, v_y]``;
+- each target's intent: keep course (probability ``p_keep``), alter course by
+  ``U(10°, turn_max)`` to a random side from a random time in the first half of the
+  horizon, or speed up by ``U(1.1, speed_up_max)``;
+- the disturbance τ_d = d̂ ⊙ (1 + σ ε), ε ~ N(0, I), per draw (the observer's estimate
+  with a relative error ``d_hat_rel_std``), held in the body frame.
+
+The safety filter (:class:`~asvtwin.control.SafetyFilter`, one per filtered future, a
+cheap object once the solver is loaded) is the expensive part: 100 futures × 240 calls of
+~1–4 ms is minutes of CPU. Its economy (``economy=True``):
+
+1. the filter is called only while an obstacle (a target or the coast) is *within reach
+   of its horizon*: own and target can close the gap within N·Δt at their speeds; out of
+   reach it could only return u_L, so u_L is applied;
+2. a certified answer's plan is *followed* (its input of the present stage) for
+   ``plan_hold_stages`` stages (4 × 4.2 s at full scale, 4 × 0.5 s at model scale): the
+   plan is certified for the predicted obstacles over its whole horizon, so following it
+   stays safe unless a target departs from its prediction, which the next call sees; an
+   uncertified answer or a fallback is re-solved at the twin's filter rate.
+
+``tests/whatif/test_rollout.py`` measures the economy against the full-rate filter: the
+collision probability agrees within its confidence interval.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from asvtwin.control import CoastSegments, MovingObstacles, PsfConfig, SafetyFilter
+from asvtwin.environment import wind_force, wind_vector
+from asvtwin.errors import ParameterError
+from asvtwin.geo import LandMask
+from asvtwin.guidance import HeadingSpeedAutopilot, LosGuidance
+from asvtwin.vessel import BatchSimulator, VesselParams
+from asvtwin.whatif.alternatives import Alternative
+from asvtwin.whatif.fork import Fork
+
+__all__ = ["RolloutConfig", "RolloutResult", "Samples", "draw_samples", "simulate"]
+
+_F8 = NDArray[np.float64]
+_CS2_L = 1.255  # model-scale CyberShip II length [m] (the Froude reference)
+
+
+@dataclass(frozen=True)
+class RolloutConfig:
+    """Settings of the rollouts.
+
+    Attributes
+    ----------
+    horizon_s : float
+        How far ahead [s] (120 s by default).
+    dt_s : float, optional
+        Simulation step [s]; default 0.05 s·√(L / 1.255 m) (0.42 s for the 88 m hull).
+    filter_period_s : float, optional
+        Period of the safety filter [s]; default the twin's default rate, 2 Hz (0.5 s).
+    economy : bool
+        Filter only within reach, and hold a certified answer for a plan stage (module
+        docstring); False: the twin's full rate wherever the filter is on.
+    psf_backend : str
+        Safety filter backend.
+    p_keep, p_turn : float
+        Probabilities of a target's intent "keep course" and "alter course" (the rest:
+        "speed up").
+    turn_max_deg, speed_up_max : float
+        Largest course alteration [deg] and speed factor of a target's intent.
+    d_hat_rel_std : float
+        Relative standard deviation of the disturbance around d̂.
+    tracker_q : float
+        Acceleration noise [m²/s³] growing the filter's obstacle covariances.
+    record_every_s : float
+        Period of the stored trajectories (ghost futures) [s].
+    plan_hold_stages : int
+        Economy: stages of a certified plan followed before the next filter call.
+    """
+
+    horizon_s: float = 120.0
+    dt_s: float | None = None
+    filter_period_s: float | None = None
+    economy: bool = True
+    psf_backend: str = "auto"
+    p_keep: float = 0.7
+    p_turn: float = 0.15
+    turn_max_deg: float = 45.0
+    speed_up_max: float = 1.5
+    d_hat_rel_std: float = 0.2
+    tracker_q: float = 0.01
+    record_every_s: float = 5.0
+    plan_hold_stages: int = 4
+
+    def __post_init__(self) -> None:
+        for name in ("horizon_s", "turn_max_deg", "record_every_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ParameterError(f"RolloutConfig.{name} must be finite and > 0, actually: {v}")
+        for name in ("dt_s", "filter_period_s"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise ParameterError(f"RolloutConfig.{name} must be finite and > 0 [s], "
+                                     f"actually: {v}")
+        if not (0 <= self.p_keep <= 1 and 0 <= self.p_turn <= 1 - self.p_keep):
+            raise ParameterError(f"RolloutConfig: intent probabilities p_keep={self.p_keep}, "
+                                 f"p_turn={self.p_turn} must be in [0, 1] with a sum <= 1")
+        if not (isinstance(self.plan_hold_stages, int) and 1 <= self.plan_hold_stages <= 50):
+            raise ParameterError(f"RolloutConfig.plan_hold_stages must be an integer in "
+                                 f"[1, 50], actually: {self.plan_hold_stages!r}")
+        if not 1.0 <= self.speed_up_max <= 3.0:
+            raise ParameterError(f"RolloutConfig.speed_up_max must be in [1, 3], actually: "
+                                 f"{self.speed_up_max}")
+
+    def resolved(self, length_m: float) -> tuple[float, float]:
+        """(dt_s, filter_period_s) for a hull of ``length_m``."""
+        sq = math.sqrt(length_m / _CS2_L)
+        dt = self.dt_s if self.dt_s is not None else 0.05 * sq
+        fp = self.filter_period_s if self.filter_period_s is not None else 0.5
+        return dt, max(fp, dt)
+
+
+@dataclass(frozen=True, eq=False)
+class Samples:
+    """The random draws of R rollouts with m targets (shared by every alternative).
+
+    ``x0`` (R, m, 4) target states; ``intent`` (R, m) 0 keep, 1 turn, 2 speed up;
+    ``t_change_s`` (R, m) when the intent starts [s]; ``turn_rad`` (R, m) signed course
+    change; ``speed_factor`` (R, m); ``d`` (R, 3) disturbance [N, N, Nm], body frame."""
+
+    x0: _F8
+    intent: NDArray[np.int64]
+    t_change_s: _F8
+    turn_rad: _F8
+    speed_factor: _F8
+    d: _F8
+
+    @property
+    def n(self) -> int:
+        return int(self.d.shape[0])
+
+    def take(self, idx: slice) -> Samples:
+        """The draws of rollouts ``idx`` (for a worker)."""
+        return Samples(self.x0[idx], self.intent[idx], self.t_change_s[idx],
+                       self.turn_rad[idx], self.speed_factor[idx], self.d[idx])
+
+
+def _sqrt_psd(c: _F8) -> _F8:
+    w, v = np.linalg.eigh(0.5 * (c + np.swapaxes(c, -1, -2)))
+    return v * np.sqrt(np.maximum(w, 0.0))[..., None, :]
+
+
+def draw_samples(fork: Fork, n: int, rng: np.random.Generator, config: RolloutConfig
+                 ) -> Samples:
+    """Draw ``n`` futures' targets, intents and disturbances (see the module docstring)."""
+    if n < 1:
+        raise ParameterError(f"the number of rollouts must be >= 1, actually: {n}")
+    m = fork.n_tracks
+    z = rng.standard_normal((n, m, 4))
+    x0 = fork.track_mean[None] + np.einsum("mij,rmj->rmi", _sqrt_psd(fork.track_cov), z) \
+        if m else np.zeros((n, 0, 4))
+    u = rng.random((n, m))
+    intent = np.where(u < config.p_keep, 0, np.where(u < config.p_keep + config.p_turn, 1, 2))
+    t_change = rng.random((n, m)) * 0.5 * config.horizon_s
+    side = np.where(rng.random((n, m)) < 0.5, -1.0, 1.0)
+    turn = side * np.radians(rng.uniform(10.0, max(10.0, config.turn_max_deg), (n, m)))
+    factor = rng.uniform(1.1, max(1.1, config.speed_up_max), (n, m))
+    d = fork.d_hat[None] * (1.0 + config.d_hat_rel_std * rng.standard_normal((n, 3)))
+    return Samples(x0, intent.astype(np.int64), t_change, turn, factor, d)
+
+
+@dataclass(frozen=True, eq=False)
+class RolloutResult:
+    """Outcomes per alternative a and rollout r (arrays (A, R, ...)).
+
+    ``min_distance_m`` (A, R, m): smallest centre distance to each target [m];
+    ``t_min_s`` (A, R, m): when it happened [s after the fork]; ``clearance_m`` (A, R):
+    smallest distance between hull circles (centre distance − both half-lengths) over all
+    targets [m], negative = contact; ``collision``/``grounding`` (A, R) bool;
+    ``land_clearance_m`` (A, R) smallest distance to the shore [m] (inf without a chart);
+    ``filter_calls``, ``interventions``, ``fallbacks`` (A, R) int; ``track`` (A, R, T, 2)
+    own positions every ``record_every_s`` [m] with ``track_t_s`` (T,)."""
+
+    min_distance_m: _F8
+    t_min_s: _F8
+    clearance_m: _F8
+    collision: NDArray[np.bool_]
+    grounding: NDArray[np.bool_]
+    land_clearance_m: _F8
+    filter_calls: NDArray[np.int64]
+    interventions: NDArray[np.int64]
+    fallbacks: NDArray[np.int64]
+    track: _F8
+    track_t_s: _F8
+    info: dict[str, float] = field(default_factory=dict)
+
+    @staticmethod
+    def join(parts: list[RolloutResult]) -> RolloutResult:
+        """Rollouts of several workers side by side (axis 1), in the order given."""
+        cat = {k: np.concatenate([getattr(p, k) for p in parts], axis=1) for k in (
+            "min_distance_m", "t_min_s", "clearance_m", "collision", "grounding",
+            "land_clearance_m", "filter_calls", "interventions", "fallbacks", "track")}
+        info = dict(parts[0].info)
+        for k in ("filter_calls", "filters_built"):
+            info[k] = float(sum(p.info.get(k, 0.0) for p in parts))
+        return RolloutResult(**cat, track_t_s=parts[0].track_t_s, info=info)
+
+
+def _course_over_ground(x: _F8) -> float:
+    c, s = math.cos(x[2]), math.sin(x[2])
+    vn, ve = c * x[3] - s * x[4], s * x[3] + c * x[4]
+    return math.atan2(ve, vn) if math.hypot(vn, ve) > 0.05 else float(x[2])
+
+
+class _Targets:
+    """Kinematic targets of R draws: constant velocity plus intent, vectorised."""
+
+    def __init__(self, fork: Fork, s: Samples, alt: Alternative, tau_s: float,
+                 rate_rad_s: float) -> None:
+        self.p = s.x0[..., :2].copy()
+        v = s.x0[..., 2:]
+        self.course = np.arctan2(v[..., 1], v[..., 0])
+        self.speed = np.hypot(v[..., 0], v[..., 1])
+        self.course_goal = self.course + np.where(s.intent == 1, s.turn_rad, 0.0)
+        self.speed_goal = self.speed * np.where(s.intent == 2, s.speed_factor, 1.0)
+        self.t_change = np.where(s.intent == 0, np.inf, s.t_change_s)
+        if alt.target_id >= 0:
+            j = np.flatnonzero(fork.track_ids == alt.target_id)
+            if j.size == 0:
+                raise ParameterError(f"alternative {alt.label!r}: no believed track "
+                                     f"{alt.target_id}; tracks: {fork.track_ids.tolist()}")
+            j0 = int(j[0])
+            self.course_goal[:, j0] = self.course[:, j0] + alt.target_course_change_rad
+            self.speed_goal[:, j0] = self.speed[:, j0] * alt.target_speed_factor
+            self.t_change[:, j0] = 0.0
+        self.tau_s = tau_s
+        self.rate = rate_rad_s
+
+    def step(self, t: float, dt: float) -> None:
+        active = t >= self.t_change
+        err = np.angle(np.exp(1j * (self.course_goal - self.course)))
+        self.course += np.where(active, np.clip(err, -self.rate * dt, self.rate * dt), 0.0)
+        self.speed += np.where(active, (self.speed_goal - self.speed) * min(1.0, dt / self.tau_s),
+                               0.0)
+        self.p[..., 0] += dt * self.speed * np.cos(self.course)
+        self.p[..., 1] += dt * self.speed * np.sin(self.course)
+
+    @property
+    def velocity(self) -> _F8:
+        return np.stack([self.speed * np.cos(self.course), self.speed * np.sin(self.course)], -1)
+
+
+def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternative],
+             samples: Samples, *, config: RolloutConfig | None = None,
+             land: LandMask | None = None, params: VesselParams | None = None
+             ) -> RolloutResult:
+    """Roll every alternative out over every draw in ``samples`` (one process).
+
+    Parameters
+    ----------
+    fork : Fork
+    alternatives : sequence of Alternative
+    samples : Samples
+        From :func:`draw_samples` (or a worker's slice of them).
+    config : RolloutConfig, optional
+    land : LandMask, optional
+        The chart, for grounding and the filter's coast (none: open water).
+    params : VesselParams, optional
+        The own ship's parameters (default ``fork.params``; pass the twin's, e.g. with
+        astern thrust).
+    """
+    cfg = config or RolloutConfig()
+    p = params or fork.params
+    A, R, m = len(alternatives), samples.n, fork.n_tracks
+    if A == 0:
+        raise ParameterError("at least one alternative is needed")
+    L = p.length
+    dt, fper = cfg.resolved(L)
+    steps = round(cfg.horizon_s / dt)
+    sq = math.sqrt(L / 88.0)
+    x0 = np.broadcast_to(fork.own_state, (A * R, 6))
+    sim = BatchSimulator(p, x0, dt_s=dt)
+    ap = HeadingSpeedAutopilot(p)
+    chi0 = _course_over_ground(fork.own_state)
+    u_now = float(fork.own_state[3])
+    route = fork.route
+    los = [LosGuidance(route, lookahead_m=2.5 * L, acceptance_radius_m=2.0 * L)
+           if len(route) else None for _ in alternatives]
+    targets = [_Targets(fork, samples, a, 30.0 * sq, 0.02 / sq) for a in alternatives]
+    # disturbances: d̂ per draw, plus the rise of the wind of a "wind" hypothesis
+    d_base = np.tile(samples.d, (A, 1))
+    old_wind = (wind_vector(fork.wind_speed_m_s, fork.wind_from_rad)
+                if math.isfinite(fork.wind_speed_m_s) and math.isfinite(fork.wind_from_rad)
+                else np.zeros(2))
+    wind_rise = [wind_vector(a.wind_speed_m_s, a.wind_from_rad) - old_wind
+                 if a.kind == "wind" else None for a in alternatives]
+    r_t = 0.5 * fork.track_length_m
+    r_own = 0.5 * L
+    # per alternative: course and speed references when not following the route
+    fixed: list[tuple[float, float] | None] = []
+    for a in alternatives:
+        if a.kind == "keep_course":
+            fixed.append((chi0, u_now))
+        elif a.kind in ("starboard", "port"):
+            fixed.append((chi0 + a.course_change_rad, fork.cruise_speed_m_s))
+        elif a.kind == "stop":
+            fixed.append((chi0, 0.0))
+        elif not len(route):
+            fixed.append((chi0, fork.cruise_speed_m_s * a.speed_factor))
+        else:
+            fixed.append(None)
+    # the filter: one per filtered future, built when first needed
+    filt: dict[int, SafetyFilter] = {}
+    plans: dict[int, tuple[float, _F8]] = {}  # per future: (time of the call, u_pred)
+    proto: SafetyFilter | None = None
+    next_call = np.zeros(A * R)
+    u0 = np.zeros((A * R, 3))
+    calls = np.zeros(A * R, np.int64)
+    inter = np.zeros(A * R, np.int64)
+    falls = np.zeros(A * R, np.int64)
+    reach_t = 0.0
+    if any(a.filter for a in alternatives):
+        proto = SafetyFilter(p, config=PsfConfig(backend=cfg.psf_backend))
+        N, pdt = proto.config.N, proto.config.dt_s
+        reach_t = N * pdt
+        coast_r = reach_t * float(proto.nu_max[0]) + proto.d_safe_m + proto.d_f_m
+    mind = np.full((A, R, m), np.inf)
+    tmin = np.zeros((A, R, m))
+    land_min = np.full(A * R, np.inf)
+    grounded = np.zeros(A * R, bool)
+    every = max(1, round(cfg.record_every_s / dt))
+    rec_t = [0.0]
+    rec = [sim.state[:, :2].reshape(A, R, 2).copy()]
+    n_filtered = 0
+    x = sim.state
+    for k in range(steps):
+        t = k * dt
+        # own ship: references, autopilot
+        chi = np.empty(A * R)
+        spd = np.empty(A * R)
+        for i, a in enumerate(alternatives):
+            sl = slice(i * R, (i + 1) * R)
+            if fixed[i] is not None:
+                chi[sl], spd[sl] = fixed[i]
+            else:
+                out = los[i].step(x[sl, :2])  # type: ignore[union-attr]
+                chi[sl] = out.course_rad
+                spd[sl] = np.where(out.done, 0.0, fork.cruise_speed_m_s * a.speed_factor)
+        u_L = ap.tau(x, chi, spd)
+        u_apply = u_L.copy()
+        # safety filter (per future, Python loop over the filtered ones that are due)
+        if proto is not None:
+            for i, a in enumerate(alternatives):
+                if not a.filter:
+                    continue
+                tg = targets[i]
+                for r in range(R):
+                    j = i * R + r
+                    if t + 1e-9 < next_call[j]:
+                        plan = plans.get(j)
+                        if plan is None:
+                            u_apply[j] = u0[j]
+                        else:  # follow the certified plan: its input of the present stage
+                            kk = min(int((t - plan[0]) / pdt + 1e-9), N - 1)
+                            u_apply[j] = plan[1][kk]
+                        continue
+                    pos, vel = tg.p[r], tg.velocity[r]
+                    xj = x[j]
+                    segs = (land.segments_within(xj[:2], coast_r) if land is not None
+                            else np.zeros((0, 4)))
+                    if cfg.economy:
+                        gap = np.hypot(pos[:, 0] - xj[0], pos[:, 1] - xj[1]) - r_t
+                        close = (float(np.hypot(xj[3], xj[4])) + np.hypot(vel[:, 0], vel[:, 1])) \
+                            * reach_t + proto.d_safe_m + proto.d_f_m
+                        if not (np.any(gap < close) or len(segs)):
+                            plans.pop(j, None)
+                            next_call[j] = t + fper
+                            u0[j] = u_L[j]
+                            continue
+                    f = filt.get(j)
+                    if f is None:
+                        f = filt[j] = SafetyFilter(p, config=PsfConfig(backend=cfg.psf_backend))
+                    obs: list[MovingObstacles | CoastSegments] = []
+                    if m:
+                        obs.append(MovingObstacles.constant_velocity(
+                            pos, vel, r_t, N=N, dt_s=pdt,
+                            covariances=fork.track_cov[:, :2, :2],
+                            process_noise=cfg.tracker_q * pdt,
+                            ids=[int(q) for q in fork.track_ids]))
+                    if len(segs):
+                        obs.append(CoastSegments(segs))
+                    res = f.filter(xj, u_L[j], obs, samples.d[r], t_s=fork.t_s + t)
+                    n_filtered += 1
+                    calls[j] += 1
+                    u0[j] = res.u0
+                    u_apply[j] = res.u0
+                    inter[j] += int(res.intervened)
+                    falls[j] += int(res.fallback != "none")
+                    # economy: a certified plan is followed for plan_hold_stages of its
+                    # stages; an uncertified answer or a fallback is re-solved at fper
+                    if cfg.economy and res.success and res.fallback == "none":
+                        plans[j] = (t, np.asarray(res.u_pred, dtype=float))
+                        next_call[j] = t + max(cfg.plan_hold_stages * pdt, fper)
+                    else:
+                        plans.pop(j, None)
+                        next_call[j] = t + fper
+        # disturbance
+        d = d_base.copy()
+        for i, w in enumerate(wind_rise):
+            if w is not None:
+                sl = slice(i * R, (i + 1) * R)
+                d[sl] += wind_force(p, x[sl], w) - wind_force(p, x[sl], np.zeros(2))
+        x = sim.step(u_apply, d)
+        for tg in targets:
+            tg.step(t, dt)
+        # scoring
+        tpos = np.stack([tg.p for tg in targets])  # (A, R, m, 2)
+        own = x[:, :2].reshape(A, R, 1, 2)
+        dist = np.hypot(*(tpos - own).transpose(3, 0, 1, 2))
+        closer = dist < mind
+        mind = np.where(closer, dist, mind)
+        tmin = np.where(closer, t + dt, tmin)
+        if land is not None:
+            sd = land.signed_distance(x[:, :2])
+            land_min = np.minimum(land_min, sd)
+            grounded |= sd < 0.0
+        if (k + 1) % every == 0:
+            rec.append(x[:, :2].reshape(A, R, 2).copy())
+            rec_t.append(t + dt)
+    clear = (mind - r_t[None, None] - r_own).min(axis=2) if m else np.full((A, R), np.inf)
+    sh = (A, R)
+    return RolloutResult(
+        min_distance_m=mind, t_min_s=tmin, clearance_m=clear, collision=clear < 0.0,
+        grounding=grounded.reshape(sh), land_clearance_m=land_min.reshape(sh),
+        filter_calls=calls.reshape(sh), interventions=inter.reshape(sh),
+        fallbacks=falls.reshape(sh), track=np.stack(rec, axis=2), track_t_s=np.array(rec_t),
+        info={"filter_calls": float(n_filtered), "filters_built": float(len(filt)),
+              "steps": float(steps), "dt_s": dt, "filter_period_s": fper})
