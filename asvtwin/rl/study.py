@@ -39,7 +39,8 @@ import numpy as np
 from asvtwin.errors import ConfigError, MissingExtraError
 from asvtwin.rl.config import SETUPS, EnvConfig, PpoConfig, check_setup
 
-__all__ = ["STUDY_FAMILIES", "load_episodes", "plot_training", "run_one", "run_study"]
+__all__ = ["STUDY_FAMILIES", "collect_runs", "load_episodes", "plot_training", "run_one",
+           "run_study", "write_study"]
 
 log = logging.getLogger(__name__)
 
@@ -64,10 +65,59 @@ def run_one(setup: str, seed: int, steps: int, out_dir: str, env: dict[str, Any]
             ev = evaluate_policy(res.policy_path, setup, fam, n_episodes=eval_episodes,
                                  env_config=env_cfg)
             evals.append(dict(ev.to_dict(), seed=seed))
-    return {"setup": setup, "seed": seed, "steps": res.steps, "episodes": res.episodes,
-            "collisions": res.collisions, "wall_s": res.wall_s,
-            "steps_per_s": res.steps_per_s, "out_dir": str(res.out_dir),
-            "policy_path": str(res.policy_path), "evaluation": evals}
+    result = {"setup": setup, "seed": seed, "steps": res.steps, "episodes": res.episodes,
+              "collisions": res.collisions, "wall_s": res.wall_s,
+              "steps_per_s": res.steps_per_s, "out_dir": str(res.out_dir),
+              "policy_path": str(res.policy_path), "evaluation": evals}
+    (Path(out_dir) / "result.json").write_text(json.dumps(result, indent=1))
+    return result
+
+
+def collect_runs(run_dirs: Sequence[str | Path], *, eval_episodes: int = 0,
+                 env: EnvConfig | None = None) -> list[dict[str, Any]]:
+    """Results of run directories, finished or not (e.g. stopped at a deadline).
+
+    A finished run's ``result.json`` is used as written; otherwise the run is described
+    from ``run.json`` and ``episodes.csv`` (``"finished": False``, ``steps`` the last
+    logged step) and, when it has a ``policy.npz`` and ``eval_episodes`` > 0, evaluated.
+    """
+    from asvtwin.rl.evaluate import evaluate_policy
+
+    out: list[dict[str, Any]] = []
+    for d in map(Path, run_dirs):
+        if (d / "result.json").exists():
+            out.append(dict(json.loads((d / "result.json").read_text()), finished=True))
+            continue
+        run = json.loads((d / "run.json").read_text()) if (d / "run.json").exists() else {}
+        with open(d / "episodes.csv", newline="") as fh:
+            rows = list(csv.DictReader(fh))
+        setup, _, seed = d.name.rpartition("_seed")
+        setup = run.get("setup", setup)
+        finished = bool(run.get("finished")) and (d / "policy.npz").exists()
+        evals = []
+        if finished and eval_episodes > 0:
+            cfg = EnvConfig.from_dict(run["env"]) if "env" in run else (env or EnvConfig())
+            for fam in STUDY_FAMILIES:
+                ev = evaluate_policy(d / "policy.npz", setup, fam, n_episodes=eval_episodes,
+                                     env_config=cfg)
+                evals.append(dict(ev.to_dict(), seed=int(seed)))
+        out.append({"setup": setup, "seed": int(run.get("seed", seed)),
+                    "steps": int(run["checkpoint_step"]) if finished else
+                    (int(rows[-1]["global_step"]) if rows else 0),
+                    "episodes": len(rows),
+                    "collisions": sum(r["collision"] == "True" for r in rows),
+                    "wall_s": float(rows[-1]["wall_s"]) if rows else 0.0,
+                    "steps_per_s": float(run.get("steps_per_s", 0.0)), "out_dir": str(d),
+                    "policy_path": str(d / "policy.npz") if finished else "",
+                    "evaluation": evals, "finished": finished})
+    return out
+
+
+def write_study(out: str | Path, results: list[dict[str, Any]]) -> None:
+    """Write the study's CSVs and figure for ``results`` (see the module docstring)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    _write_outputs(out, results)
 
 
 def _ray_map(tasks: list[tuple[Any, ...]], address: str) -> list[dict[str, Any]]:
@@ -167,13 +217,14 @@ def _write_outputs(out: Path, results: list[dict[str, Any]]) -> None:
             w.writerow([_cell(k, r[k]) for k in keys])
     with open(out / "collisions.csv", "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["setup", "seed", "steps", "episodes", "collisions",
+        w.writerow(["setup", "seed", "steps", "finished", "episodes", "collisions",
                     "collisions_with_moving", "last100_collision_rate",
                     "last100_mean_abs_cte_m"])
         for r in results:
             mine = [x for x in rows if x["setup"] == r["setup"] and x["seed"] == r["seed"]]
             last = mine[-100:]
-            w.writerow([r["setup"], r["seed"], r["steps"], len(mine),
+            w.writerow([r["setup"], r["seed"], r["steps"], int(r.get("finished", True)),
+                        len(mine),
                         sum(x["collision"] for x in mine),
                         sum(x["collision_moving"] for x in mine),
                         round(float(np.mean([x["collision"] for x in last])), 3) if last else "",

@@ -50,6 +50,7 @@ def test_quick_study_cli(tmp_path: Path) -> None:
     assert all(r["filter_calls"] == "0" for r in all_rows if r["setup"] == "ppo")
 
 
+@pytest.mark.slow
 def test_same_seed_same_rows_in_process_and_pool(tmp_path: Path) -> None:
     from asvtwin.rl.study import run_study
 
