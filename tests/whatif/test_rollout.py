@@ -1,0 +1,105 @@
+"""Rollouts of library encounters: determinism, worker split, filter on vs off, the
+recommendation and its COLREG rule, and the filter economy against the full rate."""
+
+from __future__ import annotations
+
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+import pytest
+
+from asvtwin.errors import ParameterError
+from asvtwin.scenarios import load_library, resolve_scene
+from asvtwin.whatif import (
+    RolloutConfig,
+    ask,
+    encounters,
+    fork_scenario,
+    parse_alternative,
+)
+
+
+def _alts(*specs):
+    return [parse_alternative(s) for s in specs]
+
+
+@pytest.fixture(scope="module")
+def crossing():
+    sc = load_library("model_scale_crossing")
+    return fork_scenario(sc), resolve_scene(sc).land
+
+
+def test_fork_of_library_crossing_is_a_give_way_crossing(crossing):
+    f, _ = crossing
+    (e,) = encounters(f)
+    assert (e.kind, e.rule) == ("crossing_give_way", 15)
+    assert e.cpa_m < 0.1 and 35.0 < e.tcpa_s < 45.0  # the file: "after about 39 s"
+
+
+def test_filter_lowers_collision_probability_and_keep_course_is_not_recommended(crossing):
+    f, land = crossing
+    alts = _alts("route", "route+filter_off", "keep_course+filter_off", "starboard:40+filter_off")
+    ans = ask(f, alts, rollouts=12, seed=3, config=RolloutConfig(horizon_s=60.0), land=land)
+    by = {a.label: a for a in ans.alternatives}
+    assert by["route+filter_off"].collisions >= 4  # a collision course without the filter
+    assert by["route"].collisions == 0
+    assert by["route"].p_collision < by["route+filter_off"].p_collision
+    assert by["route"].interventions > 0
+    # with the filter in the loop only filter-on decisions are candidates; ask again as
+    # a navigator whose filter is off (the fork's filter state decides)
+    import dataclasses
+
+    f_off = dataclasses.replace(f, filter_enabled=False)
+    rec = ask(f_off, alts, rollouts=12, seed=3, config=RolloutConfig(horizon_s=60.0),
+              land=land).recommendation
+    assert by["keep_course+filter_off"].collisions >= 4
+    assert rec.label == "starboard:40+filter_off"
+    assert rec.rule == 15 and "rule 15" in rec.reason and "starboard" in rec.reason
+
+
+def test_same_seed_same_answer_for_one_and_two_workers(crossing):
+    f, land = crossing
+    alts = _alts("route", "port:30+filter_off")
+    cfg = RolloutConfig(horizon_s=20.0)
+    a = ask(f, alts, rollouts=4, seed=5, config=cfg, land=land)
+    b = ask(f, alts, rollouts=4, seed=5, config=cfg, land=land)
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(2, mp_context=ctx) as ex:
+        c = ask(f, alts, rollouts=4, seed=5, config=cfg, land=land, executor=ex, workers=2)
+    for other in (b, c):
+        assert np.array_equal(a.result.min_distance_m, other.result.min_distance_m)
+        assert np.array_equal(a.result.track, other.result.track)
+        assert np.array_equal(a.result.interventions, other.result.interventions)
+    d = ask(f, alts, rollouts=4, seed=6, config=cfg, land=land)
+    assert not np.array_equal(a.result.min_distance_m, d.result.min_distance_m)
+
+
+def test_bad_alternatives_are_refused():
+    with pytest.raises(ParameterError, match=r"starboard:200.*\[1, 120\]"):
+        parse_alternative("starboard:200")
+    with pytest.raises(ParameterError, match="unknown name 'hard_a_port'"):
+        parse_alternative("hard_a_port")
+    with pytest.raises(ParameterError, match="only modifier"):
+        parse_alternative("route+psf_on")
+
+
+def test_filter_economy_agrees_with_the_full_rate_filter(crossing):
+    """The economy (filter only within reach, certified plans followed for 4 stages)
+    against the twin's full 2 Hz filter on the same draws: each collision estimate inside
+    the other's interval, the economy's closest approaches no nearer than the full rate's
+    less 10 % of the safety distance, and at least 2× fewer filter calls. (Measured: the
+    route's median closest approach agrees within 0.05 m; after a 40° turn the economy's
+    futures pass 1.6 m wider, since the full-rate filter intervenes in the turn more often.)"""
+    f, land = crossing
+    alts = _alts("route", "starboard:40")
+    runs = {econ: ask(f, alts, rollouts=6, seed=8, land=land,
+                      config=RolloutConfig(horizon_s=60.0, economy=econ))
+            for econ in (True, False)}
+    for i in range(len(alts)):
+        e, full = runs[True].alternatives[i], runs[False].alternatives[i]
+        assert e.p_collision_ci[0] <= full.p_collision <= e.p_collision_ci[1]
+        assert full.p_collision_ci[0] <= e.p_collision <= full.p_collision_ci[1]
+        assert e.min_distance_m[0] > full.min_distance_m[0] - 0.1 * 1.255
+        assert e.min_distance_m[0] > 1.255 - 0.1  # the filter's d_safe holds in both
+    assert runs[True].timing["filter_calls"] * 2 <= runs[False].timing["filter_calls"]
