@@ -5,12 +5,14 @@ setting the ship onto a coast or a rock ahead, the naive autopilot (full thrust,
 held) as u_L, 120 s per run after a 40 s observer warm-up. (A) the filter gets d̂ from
 the observer (measured ν with seeded noise, applied thrust); (B) ``d_hat=None``.
 
-What is pinned (numbers in docs/observer.md): A keeps d_safe in >= 90 % of the scenarios,
-B violates it in >= 30 % and needs far more fallbacks. A is *not* perfect (one scenario of
-the ten, a rock, ends inside d_safe after 100 s): the constant body-frame d̂ is a crude
-model of a current, see the doc. The contrast holds for the default SQP-RTI (acados)
-filter; on IPOPT the filter without d̂ was measured safe too, so there only A is checked
-(one scenario, ~20 s). By default 10 scenarios on acados; ASVTWIN_FULL=1 runs 20.
+What is pinned (numbers in docs/observer.md): A keeps d_safe in >= 90 % of the scenarios
+and never collides, and needs fewer fallbacks than B. Since the filter checks every fallback
+candidate against the obstacles (braking, turns, astern, the plan tail), B no longer drifts
+onto the hazard: the observer's gain is the number of uncertified calls, not the outcome.
+A is *not* perfect (seed 101, a rock, ends inside d_safe): the constant body-frame d̂ is a
+crude model of a current, see the doc. The comparison is made on the default SQP-RTI
+(acados) filter; on IPOPT only A is checked (one scenario, ~20 s). By default 10 scenarios
+on acados; ASVTWIN_FULL=1 runs 20.
 """
 
 from __future__ import annotations
@@ -73,9 +75,9 @@ def _study(params, psf, cases):
 
 def test_filter_with_observer_keeps_d_safe_in_current(params, psf):
     if not psf.backend.name.startswith("acados"):
-        pytest.skip("the A/B contrast is a property of the SQP-RTI filter (acados): on "
-                    "IPOPT, B also kept d_safe (seeds 101/104 coast: min 3.22/3.30 m, 0 "
-                    "fallbacks; A 2.99/3.22 m), see docs/observer.md; "
+        pytest.skip("the A/B fallback comparison is made on the SQP-RTI filter (acados): "
+                    "on IPOPT, B kept d_safe with 0 fallbacks already before the checked "
+                    "fallbacks (see docs/observer.md); "
                     "test_observer_filter_safe_on_any_backend covers A there")
     if FULL:
         cases = [(s, k) for s in range(100, 110) for k in CURRENT_KINDS]
@@ -85,16 +87,12 @@ def test_filter_with_observer_keeps_d_safe_in_current(params, psf):
     n = len(rows)
     d_safe = psf.d_safe_m
     msg = f"d_safe = {d_safe:.3f} m, backend {psf.backend.name}\n{table}"
-    # A: the filter that knows the current keeps d_safe (>= 90 % of the scenarios)
+    # A: the filter that knows the current keeps d_safe (>= 90 % of the scenarios) ...
     assert a_ok >= 0.9 * n, f"A kept d_safe in only {a_ok}/{n}\n{msg}"
-    # B: believing the water still, the filter is set onto the hazard
-    assert b_bad >= 0.3 * n, f"B violated d_safe in only {b_bad}/{n}\n{msg}"
-    # ... and falls back (uncertified plans: braking / plan tail) far more often
-    assert fa <= 0.6 * fb, f"fallbacks A {fa} vs B {fb}: not clearly fewer\n{msg}"
-    # paired: the median closest approach of A is larger
-    ma = np.median([a.min_clearance_m for *_, a, _b in rows])
-    mb = np.median([b.min_clearance_m for *_, b in rows])
-    assert ma > mb, f"median min clearance A {ma:.2f} m <= B {mb:.2f} m\n{msg}"
+    # ... and neither arm collides: the checked fallbacks keep B off the hazard too
+    assert not any(a.collided or b.collided for *_, a, b in rows), msg
+    # the observer's gain: fewer uncertified calls (measured 278 vs 378 on seeds 100-104)
+    assert fa < 0.9 * fb, f"fallbacks A {fa} vs B {fb}: not fewer\n{msg}"
 
 
 def test_observer_filter_safe_on_any_backend(params, psf):
