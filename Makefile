@@ -1,9 +1,9 @@
-# One command each: `make run` (the twin's demo on the embedded default scene) and
+# One command each: `make run` (the twin on its embedded default, in the browser viewer) and
 # `make test` (the test suite). Both create .venv and install what they need.
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
-# pytest workers: 2 on CI's 2 cores
+# pytest workers: 2 on CI's 2 cores; one module per worker, so a browser module starts one browser
 WORKERS ?= 2
 
 .PHONY: run test bench lint clean
@@ -23,11 +23,13 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 	$(BIN)/python -c "import casadi; assert casadi.has_nlpsol('ipopt'), 'casadi lost IPOPT'"
 	touch $@
 
+# The twin on its embedded default (Trondheim Fjord, synthetic AIS through the NMEA path,
+# the synthetic weather fixture, los_psf), served to the browser viewer at the printed URL.
 run: $(VENV)/.installed-test
-	$(BIN)/asvtwin sim --scene default --out out
+	$(BIN)/asvtwin run
 
 test: $(VENV)/.installed-test
-	$(BIN)/python -m pytest -n $(WORKERS) -q
+	$(BIN)/python -m pytest -n $(WORKERS) --dist loadfile -q
 
 bench: $(VENV)/.installed-test
 	@for b in benchmarks/*.py; do echo "== $$b"; $(BIN)/python $$b; done
