@@ -30,6 +30,7 @@ from asvtwin.control import (
     PsfConfig,
     SafetyFilter,
     braking_input,
+    covariance_inflation,
 )
 from asvtwin.geo import Scene
 from asvtwin.observer import DisturbanceObserver, FaultDetector, ResidualModel, SensorNoise
@@ -44,7 +45,7 @@ from asvtwin.tracking import (
     TrackSnapshot,
     cluster_scan,
     fit_ellipses,
-    predict_tracks,
+    predictions_for_safety,
 )
 from asvtwin.vessel import VesselParams
 
@@ -215,6 +216,8 @@ class FilterStage:
         self.N, self.dt_s = cfg.N, cfg.dt_s
         self.tracker_q = float(tracker_q)
         self.hull_radius_m = 0.5 * params.length
+        self.confidence = 0.95  # probability mass of a track's clearance circle
+        self._kappa = float(covariance_inflation(np.eye(2), self.confidence))
         reach = self.N * self.dt_s * float(self.psf.nu_max[0])
         self.coast_radius_m = reach + self.psf.d_safe_m + self.psf.d_f_m
         self.last: FilterResult | None = None
@@ -224,23 +227,38 @@ class FilterStage:
 
     def obstacles(self, t_s: float, x: _F8, tracks: TrackSnapshot
                   ) -> list[MovingObstacles | CoastSegments]:
-        """Moving obstacles from the confirmed tracks' CV predictions (2-σ inflation by the
-        predicted covariance), and the coast segments the plan could reach."""
+        """Moving obstacles from the tracker's safety predictions of the confirmed tracks,
+        and the coast segments the plan could reach.
+
+        The clearance of each track at each stage is the tracker's
+        (:func:`~asvtwin.tracking.predictions_for_safety`): hull radius + κ σ_max of the CV
+        prediction's position covariance scaled by the tracker's measured consistency factor
+        (:data:`~asvtwin.tracking.COVARIANCE_INFLATION`), κ the 95 % radius of a 2-D Gaussian
+        (2.45). The filter takes a hull radius plus a covariance per stage; the clearance is
+        passed as the isotropic covariance (σ_eff² I, σ_eff = (clearance − hull)/κ) whose
+        95 % inflation gives it back exactly. Tracks keep their ids ("track 2" in the
+        filter's explanation)."""
         obs: list[MovingObstacles | CoastSegments] = []
         conf = tracks.confirmed()
         if len(conf):
-            times = t_s + self.dt_s * np.arange(self.N + 1)
-            pred = predict_tracks(conf.mean, conf.cov, min(conf.t_s, t_s),
-                                  times, self.tracker_q)
-            pos = pred.positions
-            gap = np.min(np.hypot(pos[..., 0] - x[0], pos[..., 1] - x[1]), axis=1)
-            hull = np.where(np.isnan(conf.semi_axes_m[:, 0]), self.hull_radius_m,
-                            conf.semi_axes_m[:, 0])
-            keep = gap < self.coast_radius_m + hull
-            if keep.any():
-                obs.append(MovingObstacles(
-                    positions=pos[keep], radii=hull[keep],
-                    covariances=np.ascontiguousarray(pred.cov[keep][..., :2, :2])))
+            times = max(t_s, tracks.t_s) + self.dt_s * np.arange(self.N + 1)
+            sp = predictions_for_safety(tracks, times, q=self.tracker_q,
+                                        k_sigma=self._kappa,
+                                        default_hull_radius_m=self.hull_radius_m)
+            if len(sp.track_ids):
+                pos = sp.positions
+                hull = np.where(np.isnan(conf.semi_axes_m[:, 0]), self.hull_radius_m,
+                                conf.semi_axes_m[:, 0])
+                gap = np.min(np.hypot(pos[..., 0] - x[0], pos[..., 1] - x[1]), axis=1)
+                keep = gap < self.coast_radius_m + sp.clearance_radius_m.max(axis=1)
+                if keep.any():
+                    sig = np.maximum(sp.clearance_radius_m[keep] - hull[keep, None],
+                                     0.0) / self._kappa
+                    cov = sig[..., None, None] ** 2 * np.eye(2)
+                    obs.append(MovingObstacles(
+                        positions=pos[keep], radii=hull[keep], covariances=cov,
+                        confidence=self.confidence,
+                        ids=tuple(int(i) for i in sp.track_ids[keep])))
         if self.land is not None:
             segs = self.land.segments_within(x[:2], self.coast_radius_m)
             if len(segs):
