@@ -12,15 +12,20 @@ Exit codes: 0 the run met its criteria, 1 it did not, 2 bad input.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import ctypes
+import io
 import json
 import logging
+import os
 import sys
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 from asvtwin.cli.argtypes import PSF_BACKENDS, out_dir, positive_float, positive_int
 
-__all__ = ["register"]
+__all__ = ["native_stdout_to_stderr", "register"]
 
 _log = logging.getLogger(__name__)
 
@@ -58,6 +63,51 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _flush_c_stdio() -> None:
+    """Flush the C library's stdio buffers (text a native solver printf'd but not yet
+    written): otherwise a block-buffered stdout writes it at exit, into the real stdout."""
+    try:
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):  # pragma: no cover - no C library to reach
+        pass
+
+
+@contextlib.contextmanager
+def native_stdout_to_stderr(enabled: bool = True) -> Iterator[TextIO]:
+    """Keep stdout clean for machine-readable output (``--json``).
+
+    Native libraries print on file descriptor 1 directly (acados' HPIPM: "QP solver
+    returned error status 3"), past ``sys.stdout``. Inside the block fd 1 points at stderr,
+    so everything printed there, native or Python, lands on stderr; the yielded text stream
+    writes to the original stdout. Without ``enabled`` it yields ``sys.stdout`` and changes
+    nothing. The descriptors are restored (and the C buffers flushed) on exit, also on
+    errors.
+    """
+    if not enabled:
+        yield sys.stdout
+        return
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, io.UnsupportedOperation):
+        # stdout is not a file (captured by a caller): native output cannot reach it
+        yield sys.stdout
+        return
+    sys.stdout.flush()
+    _flush_c_stdio()
+    saved = os.dup(fd)
+    real = os.fdopen(os.dup(saved), "w", encoding="utf-8", closefd=True)
+    os.dup2(sys.stderr.fileno(), fd)
+    try:
+        yield real
+    finally:
+        sys.stdout.flush()
+        _flush_c_stdio()
+        real.flush()
+        os.dup2(saved, fd)
+        os.close(saved)
+        real.close()
+
+
 def load_scenario_arg(path: Path | None) -> Any:
     """The scenario named on the command line: a file, a library name, or the default."""
     from asvtwin.scenarios import default_scenario, load_any
@@ -90,6 +140,23 @@ def run(args: argparse.Namespace) -> int:
             twin.stop()
             twin.close()
         return 0
+    with native_stdout_to_stderr(args.json) as stdout:
+        summary = _run_headless(args, scenario, clock, record, speed)
+        d = summary.to_dict()
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "summary.json").write_text(json.dumps(d, indent=2) + "\n", encoding="utf-8")
+        if args.json:
+            print(json.dumps(d, indent=2), file=stdout, flush=True)
+    if not args.json:
+        print(summary.text())
+        print(f"wrote {out / 'summary.json'}" + ("" if record is None else f" and {record}"))
+    return 0 if summary.passed else 1
+
+
+def _run_headless(args: argparse.Namespace, scenario: Any, clock: Any, record: Path | None,
+                  speed: str) -> Any:
+    from asvtwin.twin import Twin
+
     twin = Twin(scenario, seed=args.seed, clock=clock, record_path=record,
                 psf_backend=args.psf_backend)
     total = float(args.duration if args.duration is not None else scenario.duration_s)
@@ -99,13 +166,4 @@ def run(args: argparse.Namespace) -> int:
 
     print(f"running {scenario.name!r} for {total:g} s (seed {twin.seed}, speed {speed}, "
           f"controller {scenario.own_ship.controller})", file=sys.stderr, flush=True)
-    summary = twin.run(total, progress=progress)
-    out.mkdir(parents=True, exist_ok=True)
-    d = summary.to_dict()
-    (out / "summary.json").write_text(json.dumps(d, indent=2) + "\n", encoding="utf-8")
-    if args.json:
-        print(json.dumps(d, indent=2))
-    else:
-        print(summary.text())
-        print(f"wrote {out / 'summary.json'}" + ("" if record is None else f" and {record}"))
-    return 0 if summary.passed else 1
+    return twin.run(total, progress=progress)

@@ -175,18 +175,21 @@ def _run(args: argparse.Namespace) -> int:
     from asvtwin.scenarios import load_any
 
     scenario = load_any(args.file)
+    from asvtwin.cli.run import native_stdout_to_stderr
     from asvtwin.twin.runtime import run_scenario  # heavy: only once the file is valid
 
     seed = scenario.seed if args.seed is None else args.seed
     progress = _Progress()
-    try:
-        summary = run_scenario(scenario, seed=seed, duration_s=args.duration, out_dir=args.out,
-                               record=not args.no_record, psf_backend=args.psf_backend,
-                               progress=progress)
-    finally:
-        progress.close()
-    if args.json:
-        print(json.dumps(summary.to_dict(), indent=2))
-    else:
+    # --json: native solver messages (acados) go to stderr, only the JSON to stdout
+    with native_stdout_to_stderr(args.json) as stdout:
+        try:
+            summary = run_scenario(scenario, seed=seed, duration_s=args.duration,
+                                   out_dir=args.out, record=not args.no_record,
+                                   psf_backend=args.psf_backend, progress=progress)
+        finally:
+            progress.close()
+        if args.json:
+            print(json.dumps(summary.to_dict(), indent=2), file=stdout, flush=True)
+    if not args.json:
         print(summary.text())
     return 0 if summary.passed else 1
