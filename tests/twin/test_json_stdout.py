@@ -33,7 +33,7 @@ _PATCH = textwrap.dedent(f"""
 
 
 def _child(args: list[str], tmp_path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", _PATCH, *args], capture_output=True,
+    return subprocess.run([sys.executable, "-c", _PATCH, *args], check=False, capture_output=True,
                           text=True, timeout=300, cwd=tmp_path)
 
 
@@ -85,7 +85,7 @@ def test_context_manager_restores_stdout_and_moves_only_the_block() -> None:
         libc.printf(b"native after\\n")
         print("after")
     """)
-    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+    p = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True,
                        timeout=120)
     assert p.returncode == 0, p.stderr
     assert p.stdout.splitlines()[0:2] == ["before", '{"ok": 1}']
@@ -94,5 +94,5 @@ def test_context_manager_restores_stdout_and_moves_only_the_block() -> None:
     assert NATIVE in p.stderr and "unterminated" in p.stderr and "python inside" in p.stderr
     with_off = subprocess.run([sys.executable, "-c", code.replace(
         "native_stdout_to_stderr()", "native_stdout_to_stderr(False)")],
-        capture_output=True, text=True, timeout=120)
+        check=False, capture_output=True, text=True, timeout=120)
     assert NATIVE in with_off.stdout  # the control: the native print does reach stdout
