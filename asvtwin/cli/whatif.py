@@ -1,7 +1,7 @@
 """``asvtwin whatif SCENARIO_OR_RECORDING [--at T]``: ask the twin "what if?".
 
 A scenario (a file or a library name) is run through the twin up to ``--at`` seconds and
-forked there; a recording (``.mcap``) is forked at its snapshot nearest before ``--at``.
+forked at its last snapshot; a recording (``.mcap``) is forked at its snapshot nearest before ``--at``.
 Each alternative (``--alt``, repeatable; default: follow the route with and without the
 safety filter, keep course, 30° to starboard) is rolled out ``--rollouts`` times and the
 answer printed: collision and grounding probability with 95 % intervals, closest
@@ -33,7 +33,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("source", metavar="SCENARIO_OR_RECORDING",
                    help="scenario file or library name, or a .mcap recording")
     p.add_argument("--at", type=non_negative_float, default=0.0, metavar="T",
-                   help="fork at this simulation time [s] (default: %(default)s)")
+                   help="fork at the twin's last snapshot at or before this simulation "
+                        "time [s] (default: %(default)s)")
     p.add_argument("--alt", action="append", default=None, metavar="SPEC",
                    help="alternative: route, keep_course, starboard:DEG, port:DEG, "
                         "slow:FRAC, stop, target_turns:ID:DEG, target_speeds_up:ID:F, "

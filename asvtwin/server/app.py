@@ -328,6 +328,10 @@ def create_app(feed: Any, *, token: str | None = None, send_timeout_s: float = 2
         hub.counters["refused"] += 1
         return _error(status, reason)
 
+    from asvtwin.whatif.api import add_whatif_route
+
+    add_whatif_route(app, feed_, _refuse)  # POST /api/whatif
+
     @app.websocket("/ws")
     async def ws_endpoint(ws: WebSocket) -> None:
         q: dict[str, Any] = {k: v for k, v in ws.query_params.items()

@@ -5,7 +5,8 @@ The request (JSON, validated, unknown fields refused)::
     {"alternatives": ["route", "route+filter_off", "starboard:30"],
      "rollouts": 100, "horizon_s": 120, "seed": 0, "ghosts": 10}
 
-forks the snapshot the server is showing, rolls the alternatives out in a worker thread
+(imported by :mod:`asvtwin.server` only, so FastAPI is there) forks the snapshot the
+server is showing, rolls the alternatives out in a worker thread
 and answers with :meth:`asvtwin.whatif.WhatIfAnswer.to_dict` plus up to ``ghosts``
 futures per alternative (positions every 5 s, NED metres) for the viewer's ghost tracks.
 """
@@ -17,6 +18,7 @@ from collections.abc import Callable
 from typing import Annotated, Any
 
 import orjson
+from fastapi import Request, Response
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from asvtwin.errors import AsvTwinError
@@ -54,8 +56,6 @@ def answer_bytes(snapshot_bytes: bytes, req: WhatIfRequest, *, land: Any = None,
 def add_whatif_route(app: Any, feed: Any, refuse: Callable[[int, str], Any]) -> None:
     """Add ``POST /api/whatif`` to the FastAPI ``app`` serving ``feed``; ``refuse(status,
     reason)`` is the server's refusal (counted)."""
-    from fastapi import Request, Response
-
     lock = asyncio.Lock()  # one question at a time: each takes the CPU for seconds
 
     @app.post("/api/whatif")

@@ -349,8 +349,9 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
         spd = np.empty(A * R)
         for i, a in enumerate(alternatives):
             sl = slice(i * R, (i + 1) * R)
-            if fixed[i] is not None:
-                chi[sl], spd[sl] = fixed[i]
+            ref = fixed[i]
+            if ref is not None:
+                chi[sl], spd[sl] = ref
             else:
                 out = los[i].step(x[sl, :2])  # type: ignore[union-attr]
                 chi[sl] = out.course_rad

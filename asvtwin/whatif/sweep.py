@@ -242,6 +242,8 @@ def _execute(cells: list[Cell], todo: list[int], out: str, backend: str, workers
         import os
 
         os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+        # a busy machine starts the raylet slowly (Ray's default wait is 30 s)
+        os.environ.setdefault("RAY_raylet_start_wait_time_s", "120")
         try:
             import ray
         except ImportError as exc:
