@@ -7,7 +7,9 @@ cache directory and loaded from there afterwards: never rebuilt in a loop.
 
 Pitfalls handled here (met with comma-deps-acados 0.2.2 and acados 0.2): the environment variables acados needs are set from
 the ``acados`` module's paths; its libraries (which have no RPATH) are preloaded with
-``RTLD_GLOBAL``; one-sided constraints get moderate finite upper bounds, never 1e9; the
+``RTLD_LOCAL``, which satisfies the generated solver's dependencies by their soname
+without putting BLASFEO's and HPIPM's symbols into the process's global namespace (with
+``RTLD_GLOBAL``, a torch linear layer run after the filter crashed in the same process); one-sided constraints get moderate finite upper bounds, never 1e9; the
 QP status is checked by us, since RTI reports success whatever the QP did; and, because
 one RTI step is not a converged solve, the filter re-simulates every plan on the model
 (:class:`asvtwin.control.psf.SafetyFilter` does this for every backend) and the backend
@@ -63,7 +65,7 @@ def _setup_environment() -> Any:
     for lib in ("libblasfeo.so", "libhpipm.so", "libqpOASES_e.so", "libacados.so"):
         path = os.path.join(acados.LIB_DIR, lib)
         if os.path.exists(path):
-            ctypes.CDLL(path, mode=ctypes.RTLD_GLOBAL)
+            ctypes.CDLL(path, mode=ctypes.RTLD_LOCAL)
     if not ca.has_nlpsol("ipopt"):
         raise SolverError(
             "the casadi in this environment has no IPOPT: comma-deps-acados's slim casadi "
