@@ -13,6 +13,7 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
+from asvtwin.errors import MissingExtraError
 from asvtwin.whatif.risk import proportion_ci
 
 __all__ = ["write_parquet", "write_report"]
@@ -20,8 +21,11 @@ __all__ = ["write_parquet", "write_report"]
 
 def write_parquet(rows: list[dict[str, Any]], path: str | Path) -> Path:
     """Write the rows (one per cell) to a Parquet file (pyarrow)."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError as exc:
+        raise MissingExtraError("pyarrow", "sweep") from exc
 
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
@@ -94,7 +98,10 @@ Runs with a collision: {{ collided }} of {{ n }} ({{ '%.1f'|format(rate) }} %, 9
 
 def write_report(rows: list[dict[str, Any]], path: str | Path, *, worst: int = 10) -> Path:
     """Write the HTML report of a sweep's rows to ``path``."""
-    import jinja2
+    try:
+        import jinja2
+    except ImportError as exc:
+        raise MissingExtraError("jinja2", "sweep") from exc
 
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)

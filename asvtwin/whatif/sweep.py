@@ -242,12 +242,10 @@ def _execute(cells: list[Cell], todo: list[int], out: str, backend: str, workers
         import os
 
         os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-        # a busy machine starts the raylet slowly (Ray's default wait is 30 s)
-        os.environ.setdefault("RAY_raylet_start_wait_time_s", "120")
         try:
             import ray
         except ImportError as exc:
-            raise MissingExtraError("the Ray backend needs ray: pip install 'ray[tune]'") from exc
+            raise MissingExtraError("ray", "ray") from exc
         started = False
         if not ray.is_initialized():
             if ray_address in (None, "local"):

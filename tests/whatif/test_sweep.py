@@ -9,9 +9,9 @@ import pyarrow.parquet as pq
 import pytest
 
 from asvtwin.errors import ScenarioError
-from tests.conftest import full_run
 from asvtwin.whatif.report import write_parquet, write_report
 from asvtwin.whatif.sweep import SweepSpec, load_sweep_spec, parse_param, rows_of, run_cells
+from tests.conftest import full_run
 
 _TIMING = ("wall_s", "realtime_factor", "ms_per_tick", "recording")
 
@@ -26,11 +26,11 @@ def _spec(**kw):
 
 @pytest.mark.parametrize(("text", "match"), [
     ("scenarios: [model_scale_crossing]\nparams: {environment.current_speed: [0, 1]}\n",
-     r"bad\.yaml: model_scale_crossing: parameter environment\.current_speed: no field "
-     r"'environment\.current_speed'"),
+     (r"bad\.yaml: model_scale_crossing: parameter environment\.current_speed: no field "
+      r"'environment\.current_speed'")),
     ("scenarios: [model_scale_crossing]\nparams: {environment.current_speed_m_s: [-1]}\n",
-     r"bad\.yaml: model_scale_crossing with \{'environment\.current_speed_m_s': -1\}: "
-     r"environment\.current_speed_m_s.*greater than or equal to 0"),
+     (r"bad\.yaml: model_scale_crossing with \{'environment\.current_speed_m_s': -1\}: "
+      r"environment\.current_speed_m_s.*greater than or equal to 0")),
     ("scenarios: [model_scale_crossing]\nseeds: 0\n", r"bad\.yaml: field 'seeds' must be"),
     ("scenarios: [model_scale_crossing]\nseed: 3\n", r"bad\.yaml: field 'seed' is not allowed"),
     ("scenarios: []\n", r"bad\.yaml: field 'scenarios' must be a non-empty list"),
@@ -79,8 +79,8 @@ def _strip(s):
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not full_run(), reason="starting a local Ray takes 30-140 s on the shared "
-                    "2-core machine; run with ASVTWIN_FULL=1")
+@pytest.mark.skipif(not full_run(), reason="starting a local Ray takes long on a shared 2-core "
+                    "machine (its raylet has a fixed 30 s limit); run with ASVTWIN_FULL=1")
 def test_ray_gives_the_same_rows_as_the_local_pool(tmp_path):
     pytest.importorskip("ray")
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
