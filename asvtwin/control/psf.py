@@ -1,8 +1,10 @@
 """The predictive safety filter: minimally correct any input so the vessel stays safe.
 
 :class:`SafetyFilter` keeps the learner's input ``u_L`` when a plan that starts with it
-is certified safe (≥ d_safe from every obstacle over the horizon, ≥ d_safe + d_f and
-inside the terminal ellipsoid P_f at its end); otherwise it solves the paper's OCP
+is certified safe (≥ d_safe from every obstacle over the horizon, inside the terminal
+ellipsoid P_f at its end and there ≥ d_safe + d_f √V_N from static obstacles and the coast,
+d_f √V_N ≤ d_f being the braking distance bound from the plan's end velocity, V_N =
+ν_Nᵀ P_f ν_N); otherwise it solves the paper's OCP
 (a)-(g) (:mod:`asvtwin.control.backends.ocp`) for the closest such input in the W-norm.
 
 Every plan, the learner's or a backend's, is *re-simulated* on the model from the current
@@ -169,6 +171,8 @@ class SafetyFilter:
         self._solved_last = False  # the previous call ran the solver
         self._t: float | None = None
         self._dropped_logged = False
+        # columns of static obstacles and coast segments in the certified margins (per call)
+        self._static_cols: NDArray[np.bool_] | None = None
 
     def _make_backend(self, cfg: PsfConfig) -> Backend:
         name = cfg.backend if cfg.backend != "auto" else available_backends()[0]
@@ -272,14 +276,38 @@ class SafetyFilter:
     def _certify(self, X: _F8, centres: _F8, radii: _F8, segs: _F8,
                  ) -> tuple[_F8, float, float, bool]:
         """Per-stage obstacle margins (N+1, m + k) [m] against the required clearance
-        (d_safe; d_safe + d_f at N, eq. (e)/(f)), their minimum over stages 1..N (+inf
+        (d_safe; d_safe + d_f √V_N at N for static ones, eq. (e)/(f)), their minimum over stages 1..N (+inf
         without obstacles, NaN when a margin is NaN), the terminal margin
         1 − ν_Nᵀ P_f ν_N (eq. (g)) and whether every state is finite."""
         out = np.empty((X.shape[0], centres.shape[1] + segs.shape[0]))
         low, term, finite = certify(X, np.ascontiguousarray(centres),
                                     np.ascontiguousarray(radii), np.ascontiguousarray(segs),
                                     self._clear, self._P_f, out)
+        # Eq. (f) asks d_f, the braking distance from the *edge* of the terminal set. From
+        # ν_N inside it the braking backup travels at most d_f √V_N (V = νᵀP_fν decays at
+        # rate 2α and ‖(u, v)‖ ≤ α d_f √V, see terminal_set): a plan that ends slow needs
+        # only that much beyond d_safe. Static obstacles and the coast get the credit
+        # d_f (1 − √V_N) at stage N (none when V_N ≥ 1: eq. (f) as is); moving ones already
+        # ask d_safe only there. Without this a full-scale ship (d_f = 527 m) within
+        # d_safe + d_f of a harbour's shore had no certifiable plan even when stopping.
+        static = self._static_cols
+        if finite and out.shape[1] and static is not None and static.any():
+            V = 1.0 - float(term)
+            credit = self.d_f_m * (1.0 - math.sqrt(min(max(V, 0.0), 1.0)))
+            out[-1, static] += credit
+            if out.shape[0] > 1:
+                low = float(np.min(out[1:]))
         return out, float(low), float(term), bool(finite)
+
+    def _terminal_clearance(self, margins: _F8, term: float) -> _F8:
+        """Stage N's distance to each obstacle minus d_safe (and its radius) [m]: the
+        certified margin with its terminal requirement (d_f √V_N for static obstacles and
+        the coast, nothing more for moving ones) added back."""
+        static = self._static_cols
+        if static is None or static.shape[0] != margins.shape[1]:
+            return margins[-1] + self.d_f_m
+        back = self.d_f_m * math.sqrt(min(max(1.0 - float(term), 0.0), 1.0))
+        return margins[-1] + np.where(static, back, 0.0)
 
     def _judge(self, margins: _F8, low: float, term: float, finite: bool, m0: _F8,
                strict: bool = False) -> tuple[bool, str, float]:
@@ -296,7 +324,7 @@ class SafetyFilter:
             path_low = math.inf
         else:
             path_low = min(float(margins[1:-1].min()) if margins.shape[0] > 2 else math.inf,
-                           float(margins[-1].min()) + self.d_f_m)
+                           float(self._terminal_clearance(margins, term).min()))
         tol = 0.0 if strict else self.certify_tol_m
         if m0.size and m0.min() < 0:  # recovery
             floor = np.minimum(m0, 0.0) - tol
@@ -369,6 +397,7 @@ class SafetyFilter:
                          f"[{self.u_lb.tolist()}, {self.u_ub.tolist()}], clipped")
         centres, radii, segs = stage_circles(obstacles, N)
         labels, moving = obstacle_labels(obstacles)
+        self._static_cols = np.concatenate([~moving, np.ones(segs.shape[0], dtype=bool)])
         if moving.any():
             # eq. (f) asks d_safe + d_f at stage N so that braking stops short of a *static*
             # obstacle; a vessel's motion beyond the horizon is unknown, and keeping d_f
@@ -517,9 +546,13 @@ class SafetyFilter:
             floor = np.minimum(m0, 0.0) - self.certify_tol_m
 
             def out_score(r: tuple) -> tuple:
+                # first a plan that gets out without closing in, then the one that ends
+                # furthest out (staying put does not decrease a margin but never leaves)
                 mg = r[4]
-                end = float(mg[-1].min()) + self.d_f_m if mg.shape[1] else 0.0
-                return (bool(np.all(mg[1:] >= floor)), end, r[8])
+                end = (float(self._terminal_clearance(mg, r[5]).min()) if mg.shape[1]
+                       else 0.0)
+                leaves = end >= -self.certify_tol_m
+                return (leaves and bool(np.all(mg[1:-1] >= floor)), end, r[8])
 
             pick = max(rows, key=out_score)
         else:

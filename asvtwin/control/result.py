@@ -160,7 +160,9 @@ class FilterResult:
         The plan behind ``u0`` (states simulated on the model from the current state).
     obstacle_margin_m : ndarray, shape (N+1,)
         Per stage, the smallest distance to an obstacle minus the required clearance
-        (d_safe; d_safe + d_f at N) [m]; stage 0 is the current state.
+        (d_safe; at N d_safe + d_f √V_N for static obstacles and the coast, V_N =
+        ν_Nᵀ P_f ν_N, the braking distance bound from the plan's end velocity; d_safe for
+        moving ones) [m]; stage 0 is the current state.
     velocity_margin : ndarray, shape (N+1, 3)
         ν_max − |ν| per stage [m/s, m/s, rad/s] (soft bounds).
     terminal_margin : float
