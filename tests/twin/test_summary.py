@@ -90,6 +90,12 @@ def test_tracking_rmse_and_nees_recomputed_by_hand():
     nees2 = e2 @ np.linalg.inv(P2) @ e2
     assert z["rmse_m"] == pytest.approx(math.sqrt((5.0 + 5.0) / 2), rel=1e-12)
     assert z["nees_mean"] == pytest.approx((nees1 + nees2) / 2, rel=1e-9)
+    # the split: position and velocity blocks by hand (block-diagonal here, so they add up)
+    pos = [e[:2] @ np.linalg.inv(P[:2, :2]) @ e[:2] for e, P in ((e1, P1), (e2, P2))]
+    vel = [e[2:] @ np.linalg.inv(P[2:, 2:]) @ e[2:] for e, P in ((e1, P1), (e2, P2))]
+    assert z["nees_position_mean"] == pytest.approx(sum(pos) / 2, rel=1e-9)
+    assert z["nees_velocity_mean"] == pytest.approx(sum(vel) / 2, abs=1e-12)
+    assert z["nees_position_mean"] + z["nees_velocity_mean"] == pytest.approx(z["nees_mean"])
     assert m.zones["near_coast"].result()["samples"] == 0
 
 
