@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from asvtwin.cli.argtypes import positive_float
+from asvtwin.cli.argtypes import PSF_BACKENDS, positive_float
 
 __all__ = ["register"]
 
@@ -63,9 +63,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="write run.mcap and summary.json into DIR (default: nothing written)")
     r.add_argument("--no-record", action="store_true", help="with --out: no run.mcap")
-    r.add_argument("--psf-backend", default="auto", metavar="NAME",
-                   help="safety filter backend: auto, acados, casadi-ipopt, casadi-fatrop "
-                        "(default: %(default)s)")
+    r.add_argument("--psf-backend", default="auto", choices=PSF_BACKENDS,
+                   help="safety filter backend (default: %(default)s)")
     r.set_defaults(func=_run)
     p.set_defaults(func=lambda args: (p.print_help(sys.stderr), 2)[1])
 

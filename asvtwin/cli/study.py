@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from asvtwin.cli.argtypes import out_dir
+
 __all__ = ["register"]
 
 
@@ -20,7 +22,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--setups", nargs="+", choices=SETUPS, default=list(SETUPS))
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     p.add_argument("--steps", type=int, default=300_000, help="steps per run")
-    p.add_argument("--out", type=Path, default=Path("study"), help="output directory")
+    p.add_argument("--out", type=Path, default=out_dir("study"),
+                   help="output directory (default: %(default)s)")
     p.add_argument("--workers", type=int, default=2, help="local processes (default 2)")
     p.add_argument("--ray", nargs="?", const="local", default=None, metavar="ADDRESS",
                    help="run as Ray tasks: 'local' (default) starts a 2-CPU local Ray; "
