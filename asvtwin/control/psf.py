@@ -87,7 +87,7 @@ class SafetyFilter:
     >>> from asvtwin.control import SafetyFilter, PsfConfig, CircleObstacles
     >>> from asvtwin.vessel import cybership2
     >>> psf = SafetyFilter(cybership2(), config=PsfConfig(N=40, backend="casadi-ipopt"))
-    >>> rock = CircleObstacles(centres=[[12.0, 0.0]], radii=[1.0])
+    >>> rock = CircleObstacles(centres=[[11.0, 0.0]], radii=[1.0])
     >>> res = psf.filter([0, 0, 0, 0.3, 0, 0], [2.0, 0, 0], rock, t_s=0.0)
     >>> res.fallback, res.intervened, "obstacle 0 ahead" in res.explanation
     ('none', True, True)
