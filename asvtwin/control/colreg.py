@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import StateError
 
 __all__ = [
@@ -49,7 +50,6 @@ __all__ = [
     "cpa_tcpa",
 ]
 
-_F8 = NDArray[np.float64]
 
 #: Encounter kinds, in the order of :attr:`Encounters.kind`'s vocabulary.
 ENCOUNTER_KINDS = ("head_on", "crossing_give_way", "crossing_stand_on", "overtaking",

@@ -34,8 +34,8 @@ from dataclasses import dataclass, field, replace
 from itertools import pairwise
 
 import numpy as np
-from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.control.obstacles import CircleObstacles, CoastSegments, MovingObstacles
 from asvtwin.control.psf import SafetyFilter
 from asvtwin.vessel.params import VesselParams
@@ -44,7 +44,6 @@ from asvtwin.vessel.simulator import VesselSimulator
 __all__ = ["SINGLE_KINDS", "EncounterCase", "EncounterRun", "encounter_cases",
            "run_encounter"]
 
-_F8 = NDArray[np.float64]
 L_MODEL = 1.255  # m
 U_CRUISE = 0.3  # m/s, model scale (CyberShip II is course-unstable above ~0.35 m/s)
 T_MEET = (50.0, 62.0, 38.0)  # s: meeting times of the first, second and third vessel

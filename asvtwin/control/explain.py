@@ -15,11 +15,11 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.control.colreg import cpa_tcpa
 
 __all__ = ["bearing_words", "describe_cause", "describe_change", "describe_obstacle"]
 
-_F8 = NDArray[np.float64]
 
 
 def bearing_words(rel_bearing_rad: float) -> str:

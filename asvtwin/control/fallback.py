@@ -30,14 +30,13 @@ from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
-from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.control.terminal_set import braking_input
 from asvtwin.vessel.params import VesselParams
 
 __all__ = ["BackupPlan", "Candidate", "Fallback", "backup_input", "candidate_inputs"]
 
-_F8 = NDArray[np.float64]
 
 
 class Fallback(str, Enum):

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.checks import check_all_finite
 from asvtwin.errors import StateError
 
@@ -40,16 +41,11 @@ __all__ = [
     "stage_circles",
 ]
 
-_F8 = NDArray[np.float64]
-
-
-def _finite(a: _F8, what: str) -> None:
-    check_all_finite(a, what)
 
 
 def _radii(r: ArrayLike, n: int, what: str) -> _F8:
     radii = np.broadcast_to(np.asarray(r, dtype=float), (n,)).copy()
-    _finite(radii, what)
+    check_all_finite(radii, what)
     if n and radii.min() <= 0:
         i = int(np.argmin(radii))
         raise StateError(f"{what}[{i}] must be > 0 m, actually: {radii[i]}")
@@ -78,7 +74,7 @@ class CircleObstacles:
 
     def __post_init__(self) -> None:
         c = np.asarray(self.centres, dtype=float).reshape(-1, 2)
-        _finite(c, "circle centres")
+        check_all_finite(c, "circle centres")
         object.__setattr__(self, "centres", c)
         object.__setattr__(self, "radii", _radii(self.radii, c.shape[0], "circle radii"))
         object.__setattr__(self, "ids", _ids(self.ids, c.shape[0], "circle"))
@@ -96,7 +92,7 @@ def covariance_inflation(cov: ArrayLike, confidence: float = 0.95) -> _F8:
     if not 0.0 < confidence < 1.0:
         raise StateError(f"confidence must be in (0, 1), actually: {confidence}")
     S = np.asarray(cov, dtype=float)
-    _finite(S, "obstacle covariance")
+    check_all_finite(S, "obstacle covariance")
     lam = np.linalg.eigvalsh(0.5 * (S + np.swapaxes(S, -1, -2)))[..., -1]
     kappa = math.sqrt(-2.0 * math.log(1.0 - confidence))
     return kappa * np.sqrt(np.maximum(lam, 0.0))
@@ -133,7 +129,7 @@ class MovingObstacles:
         if pos.ndim != 3 or pos.shape[2] != 2:
             raise StateError("moving obstacle positions must have shape (m, N+1, 2), "
                              f"actually: {np.shape(self.positions)}")
-        _finite(pos, "moving obstacle positions")
+        check_all_finite(pos, "moving obstacle positions")
         object.__setattr__(self, "positions", pos)
         object.__setattr__(self, "radii", _radii(self.radii, pos.shape[0],
                                                  "moving obstacle radii"))
@@ -186,7 +182,7 @@ class CoastSegments:
 
     def __post_init__(self) -> None:
         s = np.asarray(self.segments, dtype=float).reshape(-1, 4)
-        _finite(s, "coast segments")
+        check_all_finite(s, "coast segments")
         object.__setattr__(self, "segments", s)
 
     def __len__(self) -> int:

@@ -28,6 +28,8 @@ import warnings
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from asvtwin.checks import F8 as _F8
+from asvtwin.checks import check_vector
 from asvtwin.control.backends import Backend, available_backends, backend_lock, make_backend
 from asvtwin.control.backends.ocp import DUMMY_DISTANCE_FACTOR, OcpSpec
 from asvtwin.control.colreg import EncounterLimits, classify_encounters
@@ -49,19 +51,7 @@ from asvtwin.vessel.params import VesselParams
 __all__ = ["ActiveConstraint", "FilterResult", "PsfConfig", "SafetyFilter"]
 
 log = logging.getLogger(__name__)
-_F8 = NDArray[np.float64]
 _TERM_TOL = 0.05  # terminal ellipsoid tolerance of the certification (5 %)
-
-
-def _validate(a: ArrayLike | None, n: int, what: str, fields: tuple[str, ...]) -> _F8:
-    arr = np.asarray(a, dtype=float)
-    if arr.shape != (n,):
-        raise StateError(f"{what} must have shape ({n},), actually: {arr.shape}")
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        j = int(np.argmax(bad))
-        raise StateError(f"{what} has non-finite {fields[j]}: {arr[j]}")
-    return arr
 
 
 class SafetyFilter:
@@ -381,9 +371,9 @@ class SafetyFilter:
             ship, or a solver that raises, still returns an input (recovery, fallback).
         """
         cfg, N, dt = self.config, self.config.N, self.config.dt_s
-        x = _validate(x, 6, "state x", ("x", "y", "psi", "u", "v", "r"))
-        u_given = _validate(u_L, 3, "learner input u_L", ("tau_u", "tau_v", "tau_r"))
-        d = np.zeros(3) if d_hat is None else _validate(d_hat, 3, "disturbance d_hat",
+        x = check_vector(x, 6, "state x", ("x", "y", "psi", "u", "v", "r"))
+        u_given = check_vector(u_L, 3, "learner input u_L", ("tau_u", "tau_v", "tau_r"))
+        d = np.zeros(3) if d_hat is None else check_vector(d_hat, 3, "disturbance d_hat",
                                                         ("tau_u", "tau_v", "tau_r"))
         if t_s is None:
             t_s = 0.0 if self._t is None else self._t + dt

@@ -8,13 +8,12 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ConfigError
 
 __all__ = ["ActiveConstraint", "FilterResult", "PsfConfig", "ResolvedPsfConfig"]
 
-_F8 = NDArray[np.float64]
 #: CyberShip II's length [m]: the reference for the model-scale defaults below.
 CS2_LENGTH_M = 1.255
 

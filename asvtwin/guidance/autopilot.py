@@ -39,15 +39,15 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
 from asvtwin.guidance.kernels import autopilot_kernel
 from asvtwin.vessel.params import VesselParams
 
 __all__ = ["AutopilotGains", "HeadingSpeedAutopilot"]
 
-_F8 = NDArray[np.float64]
 _L_MODEL_M = 1.255
 
 

@@ -43,12 +43,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
 from asvtwin.guidance.kernels import los_kernel
 
 __all__ = ["LosGuidance", "LosOutput", "los_steer"]
 
-_F8 = NDArray[np.float64]
 _I8 = NDArray[np.int64]
 
 

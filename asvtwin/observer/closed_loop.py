@@ -25,8 +25,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.control.closed_loop import Scenario
 from asvtwin.control.obstacles import CircleObstacles, CoastSegments
 from asvtwin.control.psf import FilterResult, SafetyFilter
@@ -46,7 +46,6 @@ __all__ = [
     "run_with_current",
 ]
 
-_F8 = NDArray[np.float64]
 CURRENT_KINDS = ("coast_ahead", "rock_ahead")
 
 

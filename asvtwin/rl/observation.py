@@ -18,10 +18,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from asvtwin.checks import F8 as _F8
+
 __all__ = ["N_NAV", "R_REF", "SAFE_ACTION", "action_to_tau", "closeness", "nav_features",
            "ray_bearings"]
 
-_F8 = NDArray[np.float64]
 
 #: Number of navigation features after the LiDAR rays.
 N_NAV = 6

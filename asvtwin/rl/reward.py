@@ -20,13 +20,13 @@ paper's symbols. Coefficients live in :class:`asvtwin.rl.config.RewardConfig`.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.rl.config import RewardConfig
 
 __all__ = ["RewardTerms", "r_colav", "r_path", "r_psf", "reward"]
 
-_F8 = NDArray[np.float64]
 
 
 def r_path(u: ArrayLike, U_max: float, psi_bar: ArrayLike, epsilon: ArrayLike, *,

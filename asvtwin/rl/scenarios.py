@@ -21,12 +21,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.interpolate import PchipInterpolator
+
+from asvtwin.checks import F8 as _F8
 
 __all__ = ["N_MOVING", "N_PATH", "N_STATIC", "Scenario", "random_path", "random_scenario"]
 
-_F8 = NDArray[np.float64]
 
 #: Points of every path polyline (equal arc-length spacing).
 N_PATH = 256

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import brentq
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.rl.config import EnvConfig
 from asvtwin.rl.kernels import cast_circles, path_features
 from asvtwin.rl.observation import N_NAV, action_to_tau, closeness, nav_features, ray_bearings
@@ -35,7 +36,6 @@ from asvtwin.vessel.params import VesselParams, cybership2
 
 __all__ = ["EpisodeRecord", "VecPathEnv", "collision_width", "top_speed"]
 
-_F8 = NDArray[np.float64]
 _SUBSTEPS = 4  # RK4 stages per environment step (0.25 s at dt 1 s)
 _WINDOW = 24  # path segments searched either side of the last closest one
 

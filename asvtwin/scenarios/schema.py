@@ -27,7 +27,6 @@ from datetime import UTC, datetime
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from numpy.typing import NDArray
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -38,6 +37,7 @@ from pydantic import (
     model_validator,
 )
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.geo import LocalFrame
 from asvtwin.units import KNOT_M_S
 
@@ -101,7 +101,6 @@ VesselType = Literal[
     "other",
 ]
 
-_F8 = NDArray[np.float64]
 
 
 def course_keeping_speed_m_s(length_m: float) -> float:

@@ -36,6 +36,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
 from asvtwin.tracking.smallmat import (
     eig_sym3_into,
@@ -58,7 +59,6 @@ __all__ = [
     "fit_ellipses",
 ]
 
-_F8 = NDArray[np.float64]
 
 FIT_OK = 0
 FIT_TOO_FEW_POINTS = 1

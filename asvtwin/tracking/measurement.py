@@ -47,6 +47,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from asvtwin.checks import F8 as _F8
+from asvtwin.checks import check_positive
 from asvtwin.errors import ParameterError, StateError
 from asvtwin.tracking.clustering import Clusters
 from asvtwin.tracking.ellipse import _C1, EllipseFits, _method_code
@@ -70,7 +72,6 @@ __all__ = [
     "lidar_measurements",
 ]
 
-_F8 = NDArray[np.float64]
 
 #: Centre measurement models of :class:`LidarModel`.
 CENTRE_MODELS = ("hull_box", "ellipse")
@@ -115,9 +116,7 @@ class AisMeasurement:
 
 
 def _positive(cls: str, name: str, value: float, lo_ok: bool = False) -> None:
-    ok = (value >= 0.0 if lo_ok else value > 0.0) and np.isfinite(value)
-    if not ok:
-        raise ParameterError(f"{cls}.{name} must be finite and {'>=' if lo_ok else '>'} 0, actually: {value!r}")
+    check_positive(value, name, allow_zero=lo_ok, where=cls)
 
 
 @dataclass(frozen=True)

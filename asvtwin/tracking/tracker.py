@@ -34,6 +34,7 @@ from types import MappingProxyType
 import numpy as np
 from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.geo.land import LandMask
 from asvtwin.sensors.lidar import LidarScan
 from asvtwin.tracking.association import FORBIDDEN, gate_threshold, gated_costs, gnn_assign
@@ -62,7 +63,6 @@ from asvtwin.tracking.tracker_kernels import (
 
 __all__ = ["Tracker"]
 
-_F8 = NDArray[np.float64]
 _log = logging.getLogger(__name__)
 
 

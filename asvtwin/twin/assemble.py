@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.control import FilterResult
 from asvtwin.geo import LandMask, LocalFrame
 from asvtwin.sensors import LidarScan
@@ -27,7 +28,6 @@ from asvtwin.twin.snapshot import (
 __all__ = ["ais_part", "cpa_tcpa", "ellipses_part", "filter_part", "ground_velocity",
            "lidar_part", "tracks_part"]
 
-_F8 = NDArray[np.float64]
 
 
 def ground_velocity(x: _F8) -> _F8:

@@ -21,8 +21,8 @@ import dataclasses
 import math
 
 import numpy as np
-from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.control import (
     CoastSegments,
     FilterResult,
@@ -51,7 +51,6 @@ from asvtwin.vessel import VesselParams
 
 __all__ = ["AisInput", "DisturbanceEstimator", "FilterStage", "Perception"]
 
-_F8 = NDArray[np.float64]
 
 
 class AisInput:

@@ -28,8 +28,9 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ScenarioError, StateError
 from asvtwin.scenarios import OwnShipSpec
 from asvtwin.sensors import LidarScan
@@ -39,7 +40,6 @@ from asvtwin.vessel import VesselParams
 __all__ = ["CONTROLLERS", "Controller", "GuidanceStatus", "LosController", "ManualController",
            "make_controller", "uses_filter"]
 
-_F8 = NDArray[np.float64]
 
 
 class Controller(Protocol):

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.geo import LocalFrame
 from asvtwin.guidance import AutopilotGains, HeadingSpeedAutopilot, los_steer
 from asvtwin.scenarios import TargetSpec
@@ -34,7 +35,6 @@ from asvtwin.vessel import VesselParams
 
 __all__ = ["TargetPilots"]
 
-_F8 = NDArray[np.float64]
 _GIVE_WAY_TURN_RAD = math.radians(40.0)
 _KIND = {"constant_velocity": 0, "waypoints": 1, "colreg": 2}
 _ROLE = {"stand_on": 0, "give_way": 1, "auto": 2}

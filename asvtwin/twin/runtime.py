@@ -40,8 +40,9 @@ from typing import Any
 
 import numpy as np
 import orjson
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ScenarioError, SourceError, StateError
 from asvtwin.geo import Scene
 from asvtwin.scenarios import Scenario, TargetSpec, resolve_scene
@@ -71,7 +72,6 @@ from asvtwin.vessel import VesselParams, vessel_by_name
 __all__ = ["TIMING_FIELDS", "Twin", "comparable", "run_scenario"]
 
 _log = logging.getLogger(__name__)
-_F8 = NDArray[np.float64]
 
 #: Snapshot fields that measure wall time (excluded when comparing runs).
 TIMING_FIELDS = (("health",), ("filter", "solve_ms"), ("clock",))

@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 from shapely import intersects, polygons
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.geo import LandMask
 from asvtwin.scenarios import CriteriaSpec
 from asvtwin.sensors import hull_polygons
@@ -43,7 +44,6 @@ from asvtwin.tracking import TrackSnapshot, assign_tracks, nees, nees_bounds
 
 __all__ = ["RunMetrics", "RunSummary"]
 
-_F8 = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -18,8 +18,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.environment import (
     CurrentConfig,
     Environment,
@@ -44,7 +44,6 @@ from asvtwin.vessel import (
 __all__ = ["FULL_SCALE_REFERENCE_M", "TargetTable", "World", "environment_config",
            "steady_thrust"]
 
-_F8 = NDArray[np.float64]
 
 #: Ship length the weather's wind and the default waves are meant for [m] (CyberShip II ×70);
 #: a model-scale own ship gets them Froude-scaled.

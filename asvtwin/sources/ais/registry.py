@@ -56,6 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError
 from asvtwin.geo import WGS84_A_M, WGS84_F, LocalFrame
 from asvtwin.sources.ais.reports import AisReport, AisStatic, ReportBatch
@@ -63,7 +64,6 @@ from asvtwin.units import KNOT_M_S
 
 __all__ = ["TargetRegistry", "TargetSnapshot", "nominal_report_interval_s"]
 
-_F8 = NDArray[np.float64]
 _E2 = WGS84_F * (2.0 - WGS84_F)
 
 

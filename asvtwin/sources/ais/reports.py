@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
+
 if TYPE_CHECKING:
     from asvtwin.geo import LocalFrame
 
@@ -41,7 +43,6 @@ __all__ = [
 #: Message types of class B dynamic reports (the rest, 1/2/3, are class A).
 CLASS_B_TYPES = frozenset({18, 19})
 
-_F8 = NDArray[np.float64]
 
 
 def _opt(value: float) -> float | None:

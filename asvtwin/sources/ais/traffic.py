@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError
 from asvtwin.geo import Scene, default_scene
 from asvtwin.guidance import AutopilotGains, HeadingSpeedAutopilot, los_steer
@@ -33,7 +34,6 @@ from asvtwin.vessel.params import RHO_SEA, ActuatorParams, VesselParams
 
 __all__ = ["FjordTraffic", "TrafficVessel", "default_fleet"]
 
-_F8 = NDArray[np.float64]
 
 #: Yaw-moment limit of the traffic vessels relative to CyberShip II's thruster (a rudder).
 YAW_MOMENT_FACTOR = 5.0

@@ -23,15 +23,15 @@ from datetime import datetime
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import SourceError
 from asvtwin.units import deg_to_rad, hpa_to_pa
 
 __all__ = ["EXPECTED_UNITS", "WeatherForecast", "WeatherSample", "WeatherSeries", "parse_compact"]
 
 _log = logging.getLogger("asvtwin.sources.weather")
-_F8 = NDArray[np.float64]
 
 #: Units the compact product declares in ``properties.meta.units`` (checked on parse).
 EXPECTED_UNITS = {
