@@ -20,13 +20,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.errors import StateError
 from asvtwin.twin.snapshot import Snapshot, decode, encode
 from asvtwin.vessel import VesselParams, vessel_by_name
 
 __all__ = ["Fork", "fork", "fork_scenario"]
 
-_F8 = NDArray[np.float64]
 #: Track statuses a fork takes (tentative tracks are not yet believed by the twin).
 _BELIEVED = ("confirmed", "coasting")
 

@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from asvtwin.checks import F8 as _F8
 from asvtwin.control import CoastSegments, MovingObstacles, PsfConfig, SafetyFilter
 from asvtwin.environment import wind_force, wind_vector
 from asvtwin.errors import ParameterError
@@ -51,7 +52,6 @@ from asvtwin.whatif.fork import Fork
 
 __all__ = ["RolloutConfig", "RolloutResult", "Samples", "draw_samples", "simulate"]
 
-_F8 = NDArray[np.float64]
 _CS2_L = 1.255  # model-scale CyberShip II length [m] (the Froude reference)
 
 
