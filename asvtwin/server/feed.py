@@ -275,10 +275,10 @@ class RecordingFeed:
                     "paused": self._paused, "speed": self._speed}
 
     def start(self) -> None:
-        pass
+        """Nothing to start: playback is computed from the wall clock at each frame."""
 
     def stop(self) -> None:
-        pass
+        """Nothing to stop: no thread or open stream outlives a frame."""
 
     def control(self, action: str, payload: dict[str, Any]) -> dict[str, Any]:
         with self._lock:
