@@ -127,6 +127,8 @@ def test_non_local_requests_need_the_token(feed):
         assert r.status_code == 403 and "local-only" in r.json()["error"]
         assert c.post("/api/control/pause", json={}).status_code == 403
     app = create_app(feed, token="s3cret-token")
+    # TestClient calls the app in-process (no socket, no packet leaves the process); the
+    # 192.0.2.x addresses (RFC 5737 documentation range) only label the simulated peer.
     with TestClient(app, base_url="http://192.0.2.1", client=("192.0.2.7", 4000)) as c:
         assert c.get("/api/info").status_code == 403
         assert c.get("/api/info", headers={"authorization": "Bearer wrong"}).status_code == 403
