@@ -46,8 +46,16 @@ def _rss_mb() -> float:
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def extra_targets(scenario, n: int, seed: int):  # type: ignore[no-untyped-def]
-    """``n`` targets on open water within 3 km of the own ship (seeded)."""
+def extra_targets(scenario, n: int, seed: int, *, min_start_m: float = 1000.0,
+                  min_spacing_m: float = 200.0):  # type: ignore[no-untyped-def]
+    """``n`` targets on open water within 3 km of the own ship (seeded).
+
+    Each starts at least ``min_start_m`` from the own ship's start (the full-scale own
+    ship needs d_safe 88 m plus a braking distance of up to 527 m: a target spawned
+    closer, or on top of it, is a collision the benchmark made, not one the twin could
+    avoid), at least ``min_spacing_m`` from every other target and 300 m from land.
+    Targets keep their course (constant velocity or a looped two-leg route) and do not
+    give way: the own ship's filter must keep clear of them all."""
     from asvtwin.scenarios import TargetSpec, resolve_scene, top_speed_m_s
     from asvtwin.units import KNOT_M_S
 
@@ -55,9 +63,14 @@ def extra_targets(scenario, n: int, seed: int):  # type: ignore[no-untyped-def]
     scene = resolve_scene(scenario)
     p0 = scenario.own_ship.start.to_ned(scene.frame)
     out = []
+    starts: list[np.ndarray] = []
     while len(out) < n:
         p = p0 + rng.uniform(-3000.0, 3000.0, 2)
         if scene.land.signed_distance(p[None])[0] < 300.0:
+            continue
+        if np.hypot(*(p - p0)) < min_start_m:
+            continue
+        if any(np.hypot(*(p - q)) < min_spacing_m for q in starts):
             continue
         k = len(out)
         length = float(rng.uniform(15.0, 150.0))
@@ -77,6 +90,7 @@ def extra_targets(scenario, n: int, seed: int):  # type: ignore[no-untyped-def]
             spec["behaviour"] = {"kind": "waypoints", "loop": True, "route": [
                 {"north_m": float(w[0]), "east_m": float(w[1])} for w in wps]}
         out.append(TargetSpec.model_validate(spec))
+        starts.append(p)
     return out
 
 

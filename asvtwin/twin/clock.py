@@ -183,6 +183,18 @@ class Clock:
             self._stopped = True
             self._cond.notify_all()
 
+    @property
+    def stopped(self) -> bool:
+        """Whether :meth:`stop` was called (and not undone by :meth:`start`)."""
+        return self._stopped
+
+    def wait_while_paused(self, timeout_s: float | None = None) -> None:
+        """Block while paused with no step pending, at most ``timeout_s`` (``poll_s`` by
+        default); return at once when running, stepping or stopped."""
+        with self._cond:
+            if self._paused and self._steps == 0 and not self._stopped:
+                self._cond.wait(timeout=self.poll_s if timeout_s is None else timeout_s)
+
     # ------------------------------------------------------------------ pacing
     def _sleep_for(self, s: float) -> None:
         if self._sleep is not None:

@@ -224,6 +224,11 @@ class FilterStage:
         self.interventions = 0
         self.fallbacks: dict[str, int] = {}
 
+    def reset(self) -> None:
+        """Forget the last plan and the warm start (the solver itself is kept)."""
+        self.psf.reset()
+        self.last = None
+
     def obstacles(self, t_s: float, x: _F8, tracks: TrackSnapshot
                   ) -> list[MovingObstacles | CoastSegments]:
         """Moving obstacles from the tracker's safety predictions of the confirmed tracks,

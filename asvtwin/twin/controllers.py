@@ -38,7 +38,7 @@ from asvtwin.units import KNOT_M_S
 from asvtwin.vessel import VesselParams
 
 __all__ = ["CONTROLLERS", "Controller", "GuidanceStatus", "LosController", "ManualController",
-           "make_controller", "uses_filter"]
+           "RouteMonitor", "make_controller", "uses_filter"]
 
 
 
@@ -59,6 +59,42 @@ class GuidanceStatus:
     cte_m: float = float("nan")
     course_rad: float = float("nan")
     done: bool = False
+
+
+class RouteMonitor:
+    """Progress along the route for any controller: active waypoint, cross-track error,
+    LOS course and goal reached, from the own position alone (the same LOS geometry as
+    :class:`LosController`, Fossen 2021, ch. 12).
+
+    The runtime scores every controller with it, so a controller that does not follow the
+    route by LOS (the RL policy, manual thrust) still reports its real cross-track error.
+    """
+
+    def __init__(self, lookahead_m: float, acceptance_radius_m: float) -> None:
+        self.lookahead_m = float(lookahead_m)
+        self.acceptance_radius_m = float(acceptance_radius_m)
+        self.status = GuidanceStatus()
+        self._route: _F8 | None = None
+        self._los: Any = None
+
+    def update(self, position_ne: _F8, route: _F8) -> GuidanceStatus:
+        """Advance along ``route`` (k, 2) [m] with the own ship at ``position_ne`` (2,) [m]."""
+        from asvtwin.guidance import LosGuidance
+
+        if route.shape[0] == 0:
+            self.status = GuidanceStatus(done=True)
+            return self.status
+        if self._route is None or self._route.shape != route.shape or \
+                not np.array_equal(self._route, route):
+            self._route = route.copy()
+            self._los = LosGuidance(route, lookahead_m=self.lookahead_m,
+                                    acceptance_radius_m=self.acceptance_radius_m)
+        out = self._los.step(position_ne)
+        self.status = GuidanceStatus(int(np.asarray(out.waypoint_index).reshape(-1)[0]),
+                                     float(np.asarray(out.cte_m).reshape(-1)[0]),
+                                     float(np.asarray(out.course_rad).reshape(-1)[0]),
+                                     bool(np.all(out.done)))
+        return self.status
 
 
 class ManualController:
@@ -94,31 +130,20 @@ class LosController:
         self.lookahead_m = spec.lookahead
         self.acceptance_radius_m = spec.acceptance_radius
         self.autopilot = HeadingSpeedAutopilot(params)
-        self.status = GuidanceStatus()
-        self._route: _F8 | None = None
-        self._los: Any = None
+        self.monitor = RouteMonitor(self.lookahead_m, self.acceptance_radius_m)
 
-    def _guidance(self, route: _F8) -> Any:
-        from asvtwin.guidance import LosGuidance
-
-        if self._route is None or self._route.shape != route.shape or \
-                not np.array_equal(self._route, route):
-            self._route = route.copy()
-            self._los = LosGuidance(route, lookahead_m=self.lookahead_m,
-                                    acceptance_radius_m=self.acceptance_radius_m)
-        return self._los
+    @property
+    def status(self) -> GuidanceStatus:
+        """Where the own ship is on its route (the LOS guidance's own bookkeeping)."""
+        return self.monitor.status
 
     def act(self, t_s: float, nav_state: _F8, route: _F8, scan: LidarScan | None) -> _F8:
+        st = self.monitor.update(nav_state[:2], route)
         if route.shape[0] == 0:
-            self.status = GuidanceStatus(done=True)
             return np.asarray(self.autopilot.tau(nav_state, nav_state[2], 0.0), dtype=float)
-        out = self._guidance(route).step(nav_state[:2])
-        done = bool(np.all(out.done))
-        course = float(np.asarray(out.course_rad).reshape(-1)[0])
-        self.status = GuidanceStatus(int(np.asarray(out.waypoint_index).reshape(-1)[0]),
-                                     float(np.asarray(out.cte_m).reshape(-1)[0]), course, done)
-        speed = 0.0 if done else self.speed_m_s
-        return np.asarray(self.autopilot.tau(nav_state, course, speed), dtype=float).reshape(3)
+        speed = 0.0 if st.done else self.speed_m_s
+        return np.asarray(self.autopilot.tau(nav_state, st.course_rad, speed),
+                          dtype=float).reshape(3)
 
 
 def _rl(params: VesselParams, spec: OwnShipSpec) -> Controller:

@@ -52,7 +52,13 @@ from asvtwin.sources.weather import OfflineWeatherSource, WeatherForecast
 from asvtwin.twin import assemble
 from asvtwin.twin.clock import Clock
 from asvtwin.twin.components import AisInput, DisturbanceEstimator, FilterStage, Perception
-from asvtwin.twin.controllers import ManualController, make_controller, uses_filter
+from asvtwin.twin.controllers import (
+    GuidanceStatus,
+    ManualController,
+    RouteMonitor,
+    make_controller,
+    uses_filter,
+)
 from asvtwin.twin.recorder import Recorder
 from asvtwin.twin.scheduler import Scheduler
 from asvtwin.twin.snapshot import (
@@ -154,6 +160,7 @@ class Twin:
         self._extra_lines: list[str] = []
         self._file_i = 0
         self._fault_seen: list[str] = []
+        self._wind_set: tuple[float, float] | None = None  # (speed m/s, from rad) by set_wind
         # ---- sources at the edge: weather first (the world's wind may come from it)
         self.weather, self.weather_source = self._open_weather()
         self.world = World(scenario, self.scene, self.params, dt_s=self.dt_s, rng=rng_env,
@@ -162,7 +169,9 @@ class Twin:
         t = self.world.table
         self.transponders = Transponders(
             t.mmsi, t.ais_class, t.names, t.ship_type, t.length_m, t.beam_m,
-            frame=self.scene.frame, epoch_unix_s=self.epoch_unix_s, rng=rng_ais)
+            frame=self.scene.frame, epoch_unix_s=self.epoch_unix_s, rng=rng_ais,
+            position_std_m=scenario.ais.gnss_position_std_m,
+            velocity_std_m_s=scenario.ais.gnss_velocity_std_m_s)
         self.ais_mode = scenario.ais.mode
         self._file_lines = self._open_ais_file() if self.ais_mode == "file" else None
         if self.ais_mode == "live":
@@ -181,6 +190,11 @@ class Twin:
                                               rng=rng_nav)
         self.controller_name = scenario.own_ship.controller
         self.controller = make_controller(self.controller_name, self.params, scenario.own_ship)
+        # progress along the route for every controller (the LOS controller keeps its own;
+        # the policy and manual thrust are scored by the twin's monitor)
+        self._own_monitor = getattr(self.controller, "monitor", None) is None
+        self.route_monitor: RouteMonitor = getattr(self.controller, "monitor", None) or \
+            RouteMonitor(scenario.own_ship.lookahead, scenario.own_ship.acceptance_radius)
         self.psf_backend = psf_backend
         self.filter_enabled = uses_filter(self.controller_name)
         self.filter: FilterStage | None = None
@@ -350,9 +364,13 @@ class Twin:
         t = self.t_s
         if command == "set_filter_enabled":
             on = bool(args["enabled"])
-            if on and self.filter is None:
+            if on and self.filter is None:  # built once; re-enabling reuses the solver
                 self.filter = FilterStage(self.params, self.scene, backend=self.psf_backend,
                                           tracker_q=self.perception.tracker.config.q)
+            elif on and not self.filter_enabled and self.filter is not None:
+                # the plan kept from before the filter was switched out is stale: forget
+                # it (and the warm start) so no fallback replays it
+                self.filter.reset()
             self.filter_enabled = on
         elif command == "set_route":
             w = np.asarray(args["waypoints"], dtype=float)
@@ -367,6 +385,7 @@ class Twin:
             self._events.append(f"t={t:.1f} s: vessel {spec.name} injected (target {i})")
         elif command == "set_wind":
             self.world.set_wind(args["speed_m_s"], math.radians(args["from_deg"]))
+            self._wind_set = (float(args["speed_m_s"]), math.radians(args["from_deg"]))
         elif command == "set_manual_thrust":
             assert isinstance(self.controller, ManualController)
             self.controller.set_tau(args["tau"])
@@ -450,6 +469,8 @@ class Twin:
         # 6. controller and filter
         if sch.due("controller", t):
             ok, u = sch.call("controller", t, self.controller.act, t, own, self.route, self.scan)
+            if self._own_monitor:
+                self.route_monitor.update(own[:2], self.route)
             if ok and u is not None and np.isfinite(u).all():
                 self.u_L = np.asarray(u, float).reshape(3)
             if not self.filter_enabled:
@@ -477,12 +498,13 @@ class Twin:
                               self.world.table.length_m, self.world.table.beam_m)
             if ok and ev:
                 self._events.extend(ev)
-        st = getattr(self.controller, "status", None)
+        st = self.route_status
         if st is not None:
             self.metrics.cte(st.cte_m)
         self.tick += 1
         self.t_s = self.tick * self.dt_s
-        return self._latest if self._latest is not None else self._build_snapshot(t, own, truth)
+        return self._latest if self._latest is not None else \
+            self._build_snapshot(t, own, truth, keep_state=True)
 
     def _weather_step(self, t: float) -> None:
         if self.recorder is not None and self.weather is not None and t > 0:
@@ -503,15 +525,25 @@ class Twin:
             self._events.append(e)
         self._fault_seen = list(est.events)
 
+    @property
+    def route_status(self) -> GuidanceStatus:
+        """Progress along the route, whatever the controller (cte NaN before its first
+        call)."""
+        return self.route_monitor.status
+
     # ================================================================ snapshot
-    def _build_snapshot(self, t: float, own: _F8, truth: _F8) -> Snapshot:
+    def _build_snapshot(self, t: float, own: _F8, truth: _F8, *, keep_state: bool = False
+                        ) -> Snapshot:
+        """The snapshot of the state at ``t``. ``keep_state``: leave the pending events
+        and the past track as they are (a paused twin's refresh must not take what the
+        next recorded snapshot carries)."""
         sc = self.scene
         tb = self.world.table
         lat, lon = sc.frame.to_wgs84(own[0], own[1])
         v = assemble.ground_velocity(own)
-        if not self._past or t - self._past[-1][0] >= 1.0:
+        if not keep_state and (not self._past or t - self._past[-1][0] >= 1.0):
             self._past.append((t, own[0], own[1]))  # type: ignore[arg-type]
-        st = getattr(self.controller, "status", None)
+        st = self.route_status
         ownship = OwnShip(
             vessel=self.scenario.own_ship.vessel, length_m=self.params.length,
             beam_m=self.metrics.own_beam_m, state=ro(own), lat_deg=float(lat), lon_deg=float(lon),
@@ -542,17 +574,23 @@ class Twin:
             fallbacks=sum(f.fallbacks.values()) if f else 0)
         w = self._weather_at(t)
         cur = self.world.env_state.current_ned_m_s
+        source = self.weather.source if self.weather is not None else "none"
+        wind_m_s = math.nan if w is None or w.wind_speed_m_s is None else w.wind_speed_m_s
+        wind_from = math.nan if w is None or w.wind_from_rad is None else w.wind_from_rad
+        if self._wind_set is not None:  # the operator's wind is the one acting on the ship
+            wind_m_s, wind_from = self._wind_set
+            source = f"{source}; wind set by operator"
         weather = WeatherState(
-            source=self.weather.source if self.weather is not None else "none",
-            wind_speed_m_s=math.nan if w is None or w.wind_speed_m_s is None else w.wind_speed_m_s,
-            wind_from_rad=math.nan if w is None or w.wind_from_rad is None else w.wind_from_rad,
+            source=source, wind_speed_m_s=wind_m_s, wind_from_rad=wind_from,
             air_temperature_c=math.nan if w is None or w.air_temperature_c is None
             else w.air_temperature_c,
             pressure_hpa=math.nan if w is None or w.air_pressure_pa is None
             else w.air_pressure_pa / 100.0,
             current_m_s=ro(cur),
             age_s=math.nan if w is None else self.epoch_unix_s + t - w.t_unix_s)
-        events, self._events = tuple(self._events), []
+        events = tuple(self._events)
+        if not keep_state:
+            self._events = []
         counters = {"ais_lines": self.ais.lines, "ais_reports": self.ais.reports,
                     **{f"ais_error_{k}": v for k, v in self.ais.errors().items()},
                     "observer_nan_inputs": est.nan_inputs, "ticks": self.tick,
@@ -584,12 +622,30 @@ class Twin:
 
     # ================================================================ running
     def latest(self) -> Snapshot:
-        """The last snapshot built (one is built now if none exists yet)."""
+        """The last snapshot published (one is built and published now if none exists
+        yet, e.g. for a viewer connecting to a twin that starts paused)."""
         with self._lock:
             s = self._latest
         if s is None:
-            s = self._build_snapshot(self.t_s, self.world.own_state, self.world.target_states)
+            self.refresh()
+            with self._lock:
+                s = self._latest
+        assert s is not None
         return s
+
+    def refresh(self) -> Snapshot:
+        """Apply the queued controls and publish a snapshot of the current state without
+        advancing time (what a paused twin shows). Not recorded: the recording holds the
+        ticks' snapshots, and the controls applied here are recorded at this tick, where a
+        re-run applies them too."""
+        if self._inputs is None:  # a re-run applies the recording's commands in its ticks
+            self._take_commands()
+        snap = self._build_snapshot(self.t_s, self.world.own_state, self.world.target_states,
+                                    keep_state=True)
+        data = encode(snap)
+        with self._lock:
+            self._latest, self._latest_bytes = snap, data
+        return snap
 
     def latest_bytes(self) -> bytes | None:
         """The last snapshot as encoded JSON (what the recorder and server send)."""
@@ -605,10 +661,21 @@ class Twin:
         n_end = round(end / self.dt_s)
         w0 = self.clock.perf()
         every = max(1, n_end // 20)
+        idle_seq = -1
         try:
             while self.tick < n_end and not self._stop.is_set():
-                if not self.clock.wait_for_tick(self.tick * self.dt_s):
-                    break
+                if not self.clock.wait_for_tick(self.tick * self.dt_s, block=False):
+                    if self.clock.stopped or not self.clock.paused:
+                        break
+                    # paused: controls still apply and the published snapshot shows them
+                    # (and the paused clock) so a viewer that connects now sees the twin
+                    with self._lock:
+                        pending = bool(self._commands)
+                    if pending or idle_seq != self.tick:
+                        self.refresh()
+                        idle_seq = self.tick
+                    self.clock.wait_while_paused()
+                    continue
                 self.step()
                 if progress is not None and self.tick % every == 0:
                     progress(self.t_s, end)
@@ -664,7 +731,7 @@ class Twin:
         if sum(errs.values()):
             deg.append(f"ais input: {sum(errs.values())} malformed or rejected NMEA lines/"
                        f"reports dropped ({', '.join(f'{k} {v}' for k, v in sorted(errs.items()))})")
-        st = getattr(self.controller, "status", None)
+        st = self.route_status
         ticks = self.tick
         sim_s = ticks * self.dt_s
         counters = {"ais_lines": self.ais.lines, "ais_reports": self.ais.reports,

@@ -11,6 +11,18 @@ twin learns about these targets from AIS: they go through the real
 
 Which transponders are due is decided for all targets at once (arrays); only the due
 ones are encoded (pyais), a handful per second even with fifty targets.
+
+**GNSS error.** A real transponder reports its own GNSS fix, not the true position: the
+reported position and velocity carry the receiver's error. Each report draws it anew
+(white, seeded): per axis σ = :data:`GNSS_POSITION_STD_M` (4 m; a horizontal 95 % radius
+of 2.45 σ ≈ 10 m, the limit of ITU-R M.1371-5's "high" position accuracy flag, which
+typical class A receivers with SBAS/DGNSS meet) and :data:`GNSS_VELOCITY_STD_M_S`
+(0.05 m/s per axis, a GNSS Doppler velocity; SOG and COG follow from the noisy velocity, so
+COG is noisy at low speed as real AIS COG is). Heading and rate of turn come from the gyro
+and are sent as they are. The errors are independent between reports; real GNSS error is
+correlated over minutes (multipath, atmosphere), which this model leaves out on purpose
+so that the tracker's AIS model (the same σ, white) is the correct one and the twin's NEES
+measures the tracker's consistency, not a model mismatch.
 """
 
 from __future__ import annotations
@@ -32,10 +44,15 @@ from asvtwin.sources.ais import (
 )
 from asvtwin.units import wrap_angle
 
-__all__ = ["STATIC_INTERVAL_S", "Transponders"]
+__all__ = ["GNSS_POSITION_STD_M", "GNSS_VELOCITY_STD_M_S", "STATIC_INTERVAL_S",
+           "Transponders"]
 
 #: Static and voyage data interval [s] (ITU-R M.1371-5: every 6 min).
 STATIC_INTERVAL_S = 360.0
+#: GNSS position error of a transponder's fix, per axis (north, east), 1 σ [m].
+GNSS_POSITION_STD_M = 4.0
+#: GNSS velocity error of a transponder's fix, per axis (north, east), 1 σ [m/s].
+GNSS_VELOCITY_STD_M_S = 0.05
 
 
 class Transponders:
@@ -57,12 +74,27 @@ class Transponders:
         Reporting phases and radio channels.
     station : str
         Receiving base station of the tag blocks.
+    position_std_m : float
+        GNSS position error per axis, 1 σ [m] (0: exact positions).
+    velocity_std_m_s : float
+        GNSS velocity error per axis, 1 σ [m/s] (0: exact SOG and COG).
     """
 
     def __init__(self, mmsi: Sequence[int | None], ais_class: Sequence[str | None],
                  names: Sequence[str], ship_types: Sequence[int], length_m: ArrayLike,
                  beam_m: ArrayLike, *, frame: LocalFrame, epoch_unix_s: float,
-                 rng: np.random.Generator, station: str = "2579999") -> None:
+                 rng: np.random.Generator, station: str = "2579999",
+                 position_std_m: float = GNSS_POSITION_STD_M,
+                 velocity_std_m_s: float = GNSS_VELOCITY_STD_M_S) -> None:
+        from asvtwin.errors import ParameterError
+
+        for name, v in (("position_std_m", position_std_m),
+                        ("velocity_std_m_s", velocity_std_m_s)):
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ParameterError(f"Transponders {name} must be finite and >= 0, "
+                                     f"actually: {v!r}")
+        self.position_std_m = float(position_std_m)
+        self.velocity_std_m_s = float(velocity_std_m_s)
         self.frame = frame
         self.epoch_unix_s = float(epoch_unix_s)
         self.rng = rng
@@ -112,10 +144,15 @@ class Transponders:
         t_unix = math.floor(self.epoch_unix_s + t_s)
         lines: list[str] = []
         if due.size:
-            x = states[due]
+            x = states[due].copy()
             c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
             vn = c * x[:, 3] - s * x[:, 4]   # eq. η̇ = R(ψ) ν: velocity over ground
             ve = s * x[:, 3] + c * x[:, 4]
+            # the transponder's GNSS fix: truth + white error (see the module docstring)
+            e = self.rng.standard_normal((due.size, 4))
+            x[:, :2] += self.position_std_m * e[:, :2]
+            vn = vn + self.velocity_std_m_s * e[:, 2]
+            ve = ve + self.velocity_std_m_s * e[:, 3]
             sog = np.hypot(vn, ve)
             cog = np.where(sog > 1e-3, np.arctan2(ve, vn), x[:, 2])
             lat, lon = self.frame.to_wgs84(x[:, 0], x[:, 1])

@@ -158,7 +158,9 @@ def test_clock_paused_and_stepped_from_another_thread():
         time.sleep(0.02)
     time.sleep(0.3)
     assert twin.tick == 7 and twin.clock.state().mode == "step"
-    assert twin.latest().t_s == pytest.approx(1.0)  # snapshots at 1 Hz: ticks 0 and 5
+    # paused, the twin publishes the state it stopped at (tick 7, 1.4 s), not only the last
+    # 1 Hz snapshot (tick 5)
+    assert twin.latest().t_s == pytest.approx(1.4) and twin.latest().clock.paused
     twin.resume()
     twin._thread.join(60.0)
     assert not twin._thread.is_alive()

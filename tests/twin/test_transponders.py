@@ -18,11 +18,12 @@ def scene():
     return default_scene()
 
 
-def _run(scene, speeds_kn, classes, duration_s=400.0, dt=0.5):
+def _run(scene, speeds_kn, classes, duration_s=400.0, dt=0.5, gnss=(0.0, 0.0), seed=4):
     n = len(speeds_kn)
     tr = Transponders([257000001 + i for i in range(n)], classes, [f"V{i}" for i in range(n)],
                       [70] * n, [80.0] * n, [14.0] * n, frame=scene.frame,
-                      epoch_unix_s=1_732_100_400.0, rng=np.random.default_rng(4))
+                      epoch_unix_s=1_732_100_400.0, rng=np.random.default_rng(seed),
+                      position_std_m=gnss[0], velocity_std_m_s=gnss[1])
     x = np.zeros((n, 6))
     x[:, 0] = 3000.0 + 100 * np.arange(n)
     x[:, 1] = -1500.0
@@ -93,3 +94,63 @@ def test_a_vessel_without_ais_and_a_dead_feed_send_nothing(scene):
     assert set(sent) == {257000009}
     tr.alive = False
     assert all(tr.step(60.0 + k, x) == [] for k in range(60))
+
+
+def _decoded_errors(scene, lines):
+    """(north, east) position errors [m] and (v_n, v_e) velocity errors [m/s] of every
+    decoded position report against the truth the transponder saw."""
+    dp, dv = [], []
+    for _, x, line in lines:
+        body = line.split("\\")[-1]
+        if body.split(",")[1] != "1":
+            continue
+        m = decode(body)
+        if m.msg_type not in (1, 3, 18):
+            continue
+        i = m.mmsi - 257000001
+        north, east = scene.frame.to_ned(m.lat, m.lon)
+        dp.append((float(north) - x[i, 0], float(east) - x[i, 1]))
+        sog = m.speed * KNOT_M_S
+        cog = math.radians(m.course)
+        v_true = x[i, 3] * np.array([math.cos(x[i, 2]), math.sin(x[i, 2])])
+        dv.append((sog * math.cos(cog) - v_true[0], sog * math.sin(cog) - v_true[1]))
+    return np.asarray(dp), np.asarray(dv)
+
+
+def test_reports_carry_the_documented_gnss_error(scene):
+    """Decoded positions scatter about the truth with the GNSS σ (4 m per axis by default):
+    the sample variance of k errors lies inside the χ²(k) 99.9 % bounds, the mean inside
+    its 4-σ bound; velocities likewise (0.05 m/s) on top of AIS's 0.1 kn / 0.1° rounding."""
+    from scipy.stats import chi2
+
+    from asvtwin.twin.transponders import GNSS_POSITION_STD_M, GNSS_VELOCITY_STD_M_S
+
+    sigma_p, sigma_v = GNSS_POSITION_STD_M, GNSS_VELOCITY_STD_M_S
+    _, lines = _run(scene, [10.0, 12.0, 18.0, 25.0], ["A", "A", "A", "A"], duration_s=900.0,
+                    gnss=(sigma_p, sigma_v))
+    dp, dv = _decoded_errors(scene, lines)
+    k = dp.size
+    assert k > 600
+    # position: 1/10000' quantisation (≤ 0.1 m) is negligible against 4 m
+    var = float(np.sum(dp ** 2))
+    assert chi2.ppf(0.0005, k) < var / sigma_p**2 < chi2.ppf(0.9995, k)
+    assert np.all(np.abs(dp.mean(axis=0)) < 4.0 * sigma_p / math.sqrt(len(dp)))
+    # velocity: SOG rounding 0.1 kn (σ 0.015 m/s) and COG rounding 0.1° add a little
+    sig_v_tot = math.hypot(sigma_v, 0.0514 / math.sqrt(12.0))
+    var_v = float(np.sum(dv ** 2))
+    assert chi2.ppf(0.0005, dv.size) < var_v / sig_v_tot**2 < chi2.ppf(0.9995, dv.size) * 1.1
+    # seeded: the same seed gives the same lines, another seed other errors
+    _, again = _run(scene, [10.0, 12.0, 18.0, 25.0], ["A"] * 4, duration_s=900.0,
+                    gnss=(sigma_p, sigma_v))
+    assert [ln for _, _, ln in again] == [ln for _, _, ln in lines]
+    _, other = _run(scene, [10.0, 12.0, 18.0, 25.0], ["A"] * 4, duration_s=900.0,
+                    gnss=(sigma_p, sigma_v), seed=5)
+    assert not np.allclose(_decoded_errors(scene, other)[0][:50], dp[:50])
+
+
+def test_gnss_error_must_be_finite_and_non_negative(scene):
+    from asvtwin.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="position_std_m must be finite and >= 0"):
+        Transponders([1], ["A"], ["X"], [30], [20.0], [5.0], frame=scene.frame,
+                     epoch_unix_s=0.0, rng=np.random.default_rng(1), position_std_m=-1.0)
