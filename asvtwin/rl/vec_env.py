@@ -145,6 +145,7 @@ class VecPathEnv:
             # the farthest the ship gets over the horizon plus the clearance it needs
             self._reach_m = (1.05 * self.U_max * f0.config.N * f0.config.dt_s + f0.d_safe_m
                             + f0.d_f_m)
+            self._tk = np.arange(f0.config.N + 1) * f0.config.dt_s  # stage times [s]
         self.reset_all()
 
     # ------------------------------------------------------------------------- reset
@@ -272,10 +273,48 @@ class VecPathEnv:
                         c[sel, :2], m[sel, 2:4], c[sel, 2], N=N, dt_s=dt))
         return out
 
+    def _may_need_filter(self) -> NDArray[np.bool_]:
+        """Environments where some obstacle could constrain the filter's plan, for all
+        environments in one numpy pass: the necessary conditions of
+        :meth:`_filter_obstacles` (a LiDAR return within ``psf_lidar_range_m`` and the
+        ship's reach, or a moving obstacle within ``psf_moving_range_m`` whose predicted
+        track comes within reach over the horizon). Only these environments go through
+        the per-environment obstacle construction and the filter; for the others
+        :meth:`_filter_obstacles` would return nothing, so u_0 = u_L is the same answer
+        without the Python loop over them."""
+        cfg = self.config
+        ranges = self.ranges
+        if cfg.setup == "ppo_psf_moving":
+            ranges = np.where(self.hit >= N_STATIC, np.inf, ranges)
+        lim = min(cfg.psf_lidar_range_m, self._reach_m, cfg.lidar_range_m)
+        need = ranges.min(axis=1) < lim
+        if cfg.setup == "ppo_psf_moving":
+            f = self.filters[0]
+            c = self.circles[:, N_STATIC:]  # (n, M, 3) at the current time
+            v = self.moving0[:, :, 2:4]
+            pos = self.x[:, None, :2]
+            gap0 = np.hypot(*(c[..., :2] - pos).transpose(2, 0, 1)) - c[..., 2]
+            near = (c[..., 2] > 0) & (gap0 < cfg.psf_moving_range_m)
+            if near.any():
+                tk = self._tk
+                d = (c[:, :, None, :2] + tk[None, None, :, None] * v[:, :, None, :]
+                     - pos[:, :, None, :])  # (n, M, N+1, 2)
+                gap = (np.hypot(d[..., 0], d[..., 1]) - c[..., 2:3]
+                       - 1.05 * self.U_max * tk)
+                matter = near & (gap.min(axis=2) < f.d_safe_m + f.d_f_m)
+                need |= matter.any(axis=1)
+        return need & self.active
+
     def _apply_filter(self, u_L: _F8) -> _F8:
         u0 = u_L.copy()
         acc = self._acc
-        for i in np.flatnonzero(self.active).tolist():
+        need = self._may_need_filter()
+        # an environment out of reach keeps no plan: its plan belongs to obstacles now gone
+        stale = ~need & self._filter_live & self.active
+        for i in np.flatnonzero(stale).tolist():
+            self.filters[i].reset()
+            self._filter_live[i] = False
+        for i in np.flatnonzero(need).tolist():
             obs = self._filter_obstacles(i)
             f = self.filters[i]
             if not obs:

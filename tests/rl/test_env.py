@@ -169,3 +169,34 @@ def test_filter_culling_is_exact_beyond_reach() -> None:
         assert res.fallback == "none"
         # within 1 % of each input's range (the filter's own tie-break ε)
         assert (np.abs(res.u0 - u_L) <= 0.01 * np.array([2, 1, 0.3])).all(), (res.u0, u_L)
+
+
+@pytest.mark.parametrize("setup", ["ppo_psf", "ppo_psf_moving"])
+def test_batched_pre_cull_never_skips_an_environment_the_filter_needs(setup: str) -> None:
+    """The one-pass numpy pre-cull (:meth:`VecPathEnv._may_need_filter`) may only skip
+    environments for which the per-environment obstacle construction returns nothing:
+    ships put at random around the obstacles (0–120 m from a circle, random heading and
+    time), every environment the per-environment rule would filter is kept, and some
+    far ones are skipped."""
+    env = VecPathEnv(16, EnvConfig(setup=setup, psf_horizon=40), seed=3)
+    rng = np.random.default_rng(7)
+    kept = skipped = 0
+    for _ in range(40):
+        k = rng.integers(0, env.circles.shape[1], env.n)
+        env.t_s[:] = rng.uniform(0, 300, env.n)
+        env._update_circles(slice(None))
+        c = env.circles[np.arange(env.n), k]
+        ang = rng.uniform(-np.pi, np.pi, env.n)
+        dist = c[:, 2] + rng.uniform(0, 120, env.n)
+        env.x[:, 0] = c[:, 0] + dist * np.cos(ang)
+        env.x[:, 1] = c[:, 1] + dist * np.sin(ang)
+        env.x[:, 2] = rng.uniform(-np.pi, np.pi, env.n)
+        env._sense()
+        need = env._may_need_filter()
+        for i in range(env.n):
+            if env._filter_obstacles(i):
+                assert need[i], (setup, i)
+                kept += 1
+            else:
+                skipped += not need[i]
+    assert kept > 20 and skipped > 20, (kept, skipped)
