@@ -4,17 +4,31 @@
   ``VecPathEnv.step`` per call: physics, 180-ray LiDAR, path features, reward), after
   warm-up, environment steps per second of wall time.
 - ``env_steps_per_s_single``: the Gymnasium ``PathColavEnv`` stepped one call at a time.
-- ``ppo_steps_per_s`` / ``ppo_psf_steps_per_s``: whole ``asvtwin train`` processes
-  (interpreter start, imports, filter build or cache load, training, export) for
-  ``--train-steps`` steps, setup ``ppo`` and ``ppo_psf_moving`` (filter on); environment
-  steps divided by the process's wall time. Early in training the agent rarely gets near
-  obstacles, so the filter is called less often than in a trained agent's episodes.
+- ``psf_env_steps_per_s`` / ``psf_env_steps_per_s_before``: the batched world with the
+  filter (setup ``ppo_psf_moving``, 8 environments, the shipped policy's actions so the
+  ships meet obstacles) with the one-pass numpy pre-cull of environments out of the
+  filter's reach, and without it (every environment's obstacles built in Python, the
+  former path). ``psf_same_trajectories`` says both gave identical states at every step;
+  ``filter_calls``, ``interventions`` and ``fallbacks`` (per 1000 environment steps) are
+  those of the pre-culled run and must equal the ``*_before`` ones: the economy changes
+  no filter decision.
+- ``ppo_steps_per_s``: one whole ``asvtwin train`` process (interpreter start, imports,
+  warm start, training, export), setup ``ppo``, for ``--train-steps`` steps: environment
+  steps divided by the process's wall time.
+- ``ppo_psf_steps_per_s``: the training throughput of the 2-core machine with the filter
+  on (setup ``ppo_psf_moving``): two whole ``asvtwin train`` processes (seeds 0 and 1)
+  started together, their environment steps summed over the wall time until both ended
+  (``asvtwin study`` runs its seeds and setups this way, two processes by default).
+  ``ppo_psf_steps_per_s_1proc`` is one such process alone. Early in training the agent
+  rarely gets near obstacles, so the filter is called less often than in a trained
+  agent's episodes.
 
 The environment figures are medians of ``--repeats`` runs, the training figures of
-``--train-repeats`` (default 1: each is a whole training process). The machine is shared (2 cores, other
-jobs running): compare ratios measured in one run, not absolute numbers across runs.
+``--train-repeats`` (default 1: each is a whole training process). The machine is shared
+(2 cores, other jobs running; ``load_avg_1min`` is printed): compare ratios measured in
+one run, not absolute numbers across runs.
 
-Usage: ``python benchmarks/rl.py [--train-steps 8192] [--repeats 3] [--train-repeats 1]``
+Usage: ``python benchmarks/rl.py [--train-steps 16384] [--repeats 3] [--train-repeats 1]``
 """
 
 from __future__ import annotations
@@ -60,31 +74,76 @@ def _single_rate(steps: int) -> float:
     return steps / (time.perf_counter() - t0)
 
 
-def _train_rate(setup: str, steps: int) -> float:
+def _psf_rate(pre_cull: bool, steps: int) -> tuple[float, dict[str, float], np.ndarray]:
+    from asvtwin.rl.controller import default_policy_path
+    from asvtwin.rl.policy import NumpyPolicy
+
+    env = VecPathEnv(8, EnvConfig(setup="ppo_psf_moving"), seed=0, pre_cull=pre_cull)
+    pol = NumpyPolicy.load(default_policy_path())
+    obs = env.reset_all()
+    states = np.empty((steps, env.n, 6))
+    totals = {"filter_calls": 0.0, "interventions": 0.0, "fallbacks": 0.0}
+    t0 = time.perf_counter()
+    for k in range(steps):
+        obs, _, _, _, recs, _ = env.step(pol.act(obs))
+        states[k] = env.x
+        for r in recs:
+            if r is not None:
+                for key in totals:
+                    totals[key] += getattr(r, key)
+    rate = env.n * steps / (time.perf_counter() - t0)
+    for key in totals:  # episodes still running
+        totals[key] += float(env._acc[key].sum())
+    per_k = {key: round(1000 * v / (env.n * steps), 2) for key, v in totals.items()}
+    return rate, per_k, states
+
+
+def _train_cmd(setup: str, steps: int, seed: int, out: str) -> list[str]:
+    return [sys.executable, "-m", "asvtwin", "train", "--setup", setup, "--steps",
+            str(steps), "--seed", str(seed), "--out", out, "--quiet",
+            "--checkpoint-every", str(10 * steps)]
+
+
+def _train_rate(setup: str, steps: int, procs: int = 1) -> float:
+    """Environment steps per second of ``procs`` whole training processes run together."""
+    env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0")
     with tempfile.TemporaryDirectory() as tmp:
-        cmd = [sys.executable, "-m", "asvtwin", "train", "--setup", setup, "--steps",
-               str(steps), "--seed", "0", "--out", tmp, "--quiet",
-               "--checkpoint-every", str(10 * steps)]
         t0 = time.perf_counter()
-        subprocess.run(cmd, check=True, capture_output=True,
-                       env=dict(os.environ, RAY_USAGE_STATS_ENABLED="0"))
-        return steps / (time.perf_counter() - t0)
+        ps = [subprocess.Popen(_train_cmd(setup, steps, seed, f"{tmp}/{seed}"),
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
+              for seed in range(procs)]
+        for p in ps:
+            _, err = p.communicate()
+            if p.returncode:
+                raise RuntimeError(f"asvtwin train failed ({p.returncode}): "
+                                   f"{err.decode()[-2000:]}")
+        return procs * steps / (time.perf_counter() - t0)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--train-steps", type=int, default=8192)
+    ap.add_argument("--train-steps", type=int, default=16384)
+    ap.add_argument("--psf-steps", type=int, default=300,
+                    help="steps of the filtered world per environment (8 environments)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--train-repeats", type=int, default=1)
     args = ap.parse_args()
     med = lambda f, *a: float(np.median([f(*a) for _ in range(args.repeats)]))
     tmed = lambda *a: float(np.median(
         [_train_rate(*a) for _ in range(args.train_repeats)]))
+    rate_after, per_k, x_after = _psf_rate(True, args.psf_steps)
+    rate_before, per_k_before, x_before = _psf_rate(False, args.psf_steps)
     out = {
         "env_steps_per_s": round(med(_vec_rate, 64, 300)),
         "env_steps_per_s_single": round(med(_single_rate, 2000)),
+        "psf_env_steps_per_s": round(rate_after),
+        "psf_env_steps_per_s_before": round(rate_before),
+        "psf_same_trajectories": bool(np.array_equal(x_after, x_before)),
+        **{f"{k}_per_1000_steps": v for k, v in per_k.items()},
+        **{f"{k}_per_1000_steps_before": v for k, v in per_k_before.items()},
         "ppo_steps_per_s": round(tmed("ppo", args.train_steps)),
-        "ppo_psf_steps_per_s": round(tmed("ppo_psf_moving", args.train_steps)),
+        "ppo_psf_steps_per_s": round(tmed("ppo_psf_moving", args.train_steps, 2)),
+        "ppo_psf_steps_per_s_1proc": round(tmed("ppo_psf_moving", args.train_steps)),
         "train_steps": args.train_steps,
         "repeats": args.repeats,
         "train_repeats": args.train_repeats,

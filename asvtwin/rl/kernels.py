@@ -5,6 +5,8 @@
 - :func:`path_features`: the closest point on each own ship's path (a polyline, searched
   in a window around the previous closest segment), the cross-track error, the path's
   heading there and the look-ahead point's bearing.
+- :func:`filter_reach`: which environments have an obstacle that could constrain the
+  safety filter's plan (the pre-cull before any per-environment work).
 
 One call handles every environment: no Python loop over environments on the hot path.
 """
@@ -15,7 +17,7 @@ import math
 
 from numba import njit
 
-__all__ = ["cast_circles", "path_features"]
+__all__ = ["cast_circles", "filter_reach", "path_features"]
 
 
 @njit(cache=True)
@@ -139,3 +141,42 @@ def path_features(pos, psi, path, s_cum, idx, window, lookahead, out):  # pragma
         out[i, 3] = (look - psi[i] + math.pi) % (2.0 * math.pi) - math.pi
         out[i, 4] = s / total if total > 0.0 else 1.0
     return 0
+
+
+@njit(cache=True)
+def filter_reach(pos, ranges, hit, skip_from, lidar_lim, moving, vel, moving_range,
+                 tk, speed, clearance, active, out):  # pragma: no cover - compiled
+    """Which of n environments can need the safety filter, into ``out`` (n,) bool.
+
+    Environment i needs it when it is ``active`` and either a LiDAR ray not from a moving
+    obstacle (``hit < skip_from``) reads less than ``lidar_lim`` [m], or a moving circle
+    ``moving[i, j] = [north, east, radius]`` (radius 0: unused) within ``moving_range``
+    [m] of its edge comes, on its constant-velocity prediction ``vel[i, j]`` at the
+    stage times ``tk`` [s], closer than ``clearance`` [m] to the farthest point the
+    ship can reach by then (``speed · t``). These are exactly the first tests of the
+    per-environment obstacle construction; an environment that fails both gets no
+    obstacle there.
+    """
+    n = pos.shape[0]
+    for i in range(n):
+        need = False
+        if active[i]:
+            for k in range(ranges.shape[1]):
+                if hit[i, k] < skip_from and ranges[i, k] < lidar_lim:
+                    need = True
+                    break
+            j = 0
+            while not need and j < moving.shape[1]:
+                r = moving[i, j, 2]
+                if r > 0:
+                    dx = moving[i, j, 0] - pos[i, 0]
+                    dy = moving[i, j, 1] - pos[i, 1]
+                    if math.sqrt(dx * dx + dy * dy) - r < moving_range:
+                        for k in range(tk.shape[0]):
+                            ex = dx + tk[k] * vel[i, j, 0]
+                            ey = dy + tk[k] * vel[i, j, 1]
+                            if math.sqrt(ex * ex + ey * ey) - r - speed * tk[k] < clearance:
+                                need = True
+                                break
+                j += 1
+        out[i] = need

@@ -27,7 +27,7 @@ from scipy.optimize import brentq
 
 from asvtwin.checks import F8 as _F8
 from asvtwin.rl.config import EnvConfig
-from asvtwin.rl.kernels import cast_circles, path_features
+from asvtwin.rl.kernels import cast_circles, filter_reach, path_features
 from asvtwin.rl.observation import N_NAV, action_to_tau, closeness, nav_features, ray_bearings
 from asvtwin.rl.reward import reward
 from asvtwin.rl.scenarios import N_MOVING, N_PATH, N_STATIC, Scenario, random_scenario
@@ -96,16 +96,23 @@ class VecPathEnv:
         The vessel (default :func:`asvtwin.vessel.cybership2`).
     auto_reset : bool
         Reset ended environments inside :meth:`step` (vector convention).
+    pre_cull : bool
+        Decide in one compiled pass which environments can need the filter
+        (:meth:`_may_need_filter`) before building their obstacles one by one (default);
+        False builds them for every environment (the former path, same answers: kept
+        for the benchmark's before/after comparison).
     """
 
     def __init__(self, n_envs: int, config: EnvConfig | None = None, *, seed: int = 0,
-                 params: VesselParams | None = None, auto_reset: bool = True) -> None:
+                 params: VesselParams | None = None, auto_reset: bool = True,
+                 pre_cull: bool = True) -> None:
         self.config = cfg = config or EnvConfig()
         self.n = n = int(n_envs)
         self.params = params or cybership2()
         self.U_max = top_speed(self.params)
         self.collision_m = collision_width(self.params)
         self.auto_reset = auto_reset
+        self.pre_cull = pre_cull
         self.tau_max = np.asarray(self.params.actuators.tau_max, dtype=float)
         self.u_max = np.maximum(np.abs(self.params.actuators.tau_min), self.tau_max)
         self._P = np.ascontiguousarray(self.params.packed()[None])
@@ -146,6 +153,7 @@ class VecPathEnv:
             self._reach_m = (1.05 * self.U_max * f0.config.N * f0.config.dt_s + f0.d_safe_m
                             + f0.d_f_m)
             self._tk = np.arange(f0.config.N + 1) * f0.config.dt_s  # stage times [s]
+            self._no_moving = np.zeros((n, 0, 3))
         self.reset_all()
 
     # ------------------------------------------------------------------------- reset
@@ -275,7 +283,8 @@ class VecPathEnv:
 
     def _may_need_filter(self) -> NDArray[np.bool_]:
         """Environments where some obstacle could constrain the filter's plan, for all
-        environments in one numpy pass: the necessary conditions of
+        environments in one compiled pass (:func:`asvtwin.rl.kernels.filter_reach`): the
+        necessary conditions of
         :meth:`_filter_obstacles` (a LiDAR return within ``psf_lidar_range_m`` and the
         ship's reach, or a moving obstacle within ``psf_moving_range_m`` whose predicted
         track comes within reach over the horizon). Only these environments go through
@@ -283,32 +292,21 @@ class VecPathEnv:
         :meth:`_filter_obstacles` would return nothing, so u_0 = u_L is the same answer
         without the Python loop over them."""
         cfg = self.config
-        ranges = self.ranges
-        if cfg.setup == "ppo_psf_moving":
-            ranges = np.where(self.hit >= N_STATIC, np.inf, ranges)
-        lim = min(cfg.psf_lidar_range_m, self._reach_m, cfg.lidar_range_m)
-        need = ranges.min(axis=1) < lim
-        if cfg.setup == "ppo_psf_moving":
-            f = self.filters[0]
-            c = self.circles[:, N_STATIC:]  # (n, M, 3) at the current time
-            v = self.moving0[:, :, 2:4]
-            pos = self.x[:, None, :2]
-            gap0 = np.hypot(*(c[..., :2] - pos).transpose(2, 0, 1)) - c[..., 2]
-            near = (c[..., 2] > 0) & (gap0 < cfg.psf_moving_range_m)
-            if near.any():
-                tk = self._tk
-                d = (c[:, :, None, :2] + tk[None, None, :, None] * v[:, :, None, :]
-                     - pos[:, :, None, :])  # (n, M, N+1, 2)
-                gap = (np.hypot(d[..., 0], d[..., 1]) - c[..., 2:3]
-                       - 1.05 * self.U_max * tk)
-                matter = near & (gap.min(axis=2) < f.d_safe_m + f.d_f_m)
-                need |= matter.any(axis=1)
-        return need & self.active
+        f = self.filters[0]
+        moving = cfg.setup == "ppo_psf_moving"
+        need = np.empty(self.n, dtype=np.bool_)
+        filter_reach(self.x[:, :2], self.ranges, self.hit,
+                     N_STATIC if moving else np.iinfo(np.int64).max,
+                     min(cfg.psf_lidar_range_m, self._reach_m, cfg.lidar_range_m),
+                     self.circles[:, N_STATIC:] if moving else self._no_moving,
+                     self.moving0[:, :, 2:4], cfg.psf_moving_range_m, self._tk,
+                     1.05 * self.U_max, f.d_safe_m + f.d_f_m, self.active, need)
+        return need
 
     def _apply_filter(self, u_L: _F8) -> _F8:
         u0 = u_L.copy()
         acc = self._acc
-        need = self._may_need_filter()
+        need = self._may_need_filter() if self.pre_cull else self.active.copy()
         # an environment out of reach keeps no plan: its plan belongs to obstacles now gone
         stale = ~need & self._filter_live & self.active
         for i in np.flatnonzero(stale).tolist():
