@@ -85,7 +85,7 @@ def test_round_trip_ground_truth_to_registry(half_hour) -> None:
     assert pipe.stats.errors["duplicate"] > 20
     # bounded state: the dedup memory holds the last two dedup windows (2 x 30 s) only
     recent = sum(1 for x in half_hour if x.t_unix_s >= half_hour[-1].t_unix_s - 60.0)
-    assert len(pipe._seen) <= recent
+    assert len(pipe.duplicates) <= recent
     t_last = max(t.t_unix_s for t in truth.values()) - T0
     snap = reg.extrapolate(t_last)
     assert sorted(snap.mmsi.tolist()) == sorted(v.mmsi for v in default_fleet())

@@ -1,25 +1,29 @@
-"""NMEA lines -> validated AIS reports in the scene's NED frame (decode on pyais).
+"""NMEA lines -> validated AIS reports in the scene's NED frame.
 
 :class:`AisPipeline` is the one decoding path of every AIS source (TCP, UDP, file replay,
-synthetic traffic, history). Per line, in order:
+synthetic traffic, history). Per line, in order (one method or module per stage):
 
-1. **sentence**: 7-bit ASCII (a garbage prefix is skipped up to the next ``\\`` or ``!``),
-   IEC 61162-450 tag block (:mod:`~asvtwin.sources.ais.tagblock`: ``\\s:station,c:time*hh\\``,
-   checksum over the whole tag or, the national feed's group convention, over ``c:`` alone),
-   ``*hh`` checksum of the sentence, fields parsed by
+1. **sentence** (:mod:`~asvtwin.sources.ais.sentence`, :meth:`AisPipeline._frame`): 7-bit
+   ASCII (a garbage prefix is skipped up to the next ``\\`` or ``!``), IEC 61162-450 tag
+   block (``\\s:station,c:time*hh\\``, checksum over the whole tag or, the national feed's
+   group convention, over ``c:`` alone), ``*hh`` checksum of the sentence, fields parsed by
    :class:`pyais.messages.NMEASentenceFactory`, fill bits one digit 0..5, every payload
    character in the AIS 6-bit alphabet; ``!xxVDO`` (the own ship) is not a target;
 2. **assembly** of multi-fragment messages (:class:`FragmentAssembler`), the timeout checked
    on every timed line and at the end of a stream (:meth:`AisPipeline.finish`);
-3. **duplicates**: the same payload again within ``dedup_window_s`` (one transmission heard
-   by two base stations) is dropped;
-4. **decode** with pyais (types 1/2/3, 5, 18, 19, 24; others are counted by type and skipped);
-5. **validation**: MMSI range, "not available" values to NaN/None (lat 91, lon 181,
-   SOG 102.3 kn, COG 360, heading 511, ROT -128 / +-127), position inside the scene box,
-   receive time present, plausible, not behind the MMSI's last report, not in the future
-   (ahead of the receive clock, or of the robust stream time :class:`StreamClock`, which no
-   single report can move);
-6. **projection** to the scene's NED frame, vectorised over the batch.
+3. **duplicates** (:class:`~asvtwin.sources.ais.duplicates.DuplicateFilter`): the same payload
+   again within ``dedup_window_s`` (one transmission heard by two base stations) is dropped;
+4. **decode**: one-sentence position reports (types 1, 2, 3, 18; nine lines in ten) for the
+   whole batch at once (:mod:`~asvtwin.sources.ais.positions`, checked field for field against
+   pyais), everything else with pyais (types 5, 19, 24 used; others counted by type, skipped);
+5. **validation** (:class:`~asvtwin.sources.ais.validation.ReportValidator`):
+   MMSI range, receive time present and plausible, position available, valid and inside the
+   scene box, not behind the MMSI's last report, not in the future (ahead of the receive
+   clock, or of the robust stream time :class:`StreamClock`, which no single report can
+   move);
+6. **projection** to the scene's NED frame and SI units, "not available" values (lat 91,
+   lon 181, SOG 102.3 kn, COG 360, heading 511, ROT -128 / +-127) to NaN/None, vectorised
+   over the batch (:mod:`~asvtwin.sources.ais.records`).
 
 Every rejection is counted by :class:`~asvtwin.sources.ais.counters.ErrorKind`, logged once,
 and skipped. Time comes from tag blocks or from ``recv_time_s`` passed by the caller; the
@@ -30,21 +34,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from pyais.exceptions import AISBaseException
-from pyais.messages import NMEASentenceFactory
+from pyais.messages import AISSentence
 
 from asvtwin.errors import ParameterError
 from asvtwin.geo import Scene, default_scene
+from asvtwin.sources.ais.census import LogCensus
 from asvtwin.sources.ais.counters import ErrorCounter, ErrorKind, NoticeKind, PipelineStats
+from asvtwin.sources.ais.duplicates import DuplicateFilter
 from asvtwin.sources.ais.fragments import FragmentAssembler
+from asvtwin.sources.ais.positions import FastLines, no_fast_lines, scan_fast_lines
+from asvtwin.sources.ais.records import COLUMNS, pyais_row, report_batch, static_record
 from asvtwin.sources.ais.reports import AisStatic, ReportBatch
-from asvtwin.sources.ais.tagblock import TagBlockError, parse_tag_block, parse_tag_block_time
+from asvtwin.sources.ais.sentence import STARTS, TagCache, as_bytes, check_ais, prefix_xor, resync
+from asvtwin.sources.ais.tagblock import TagBlockError, parse_tag_block
 from asvtwin.sources.ais.timebase import T_MAX_UNIX_S, T_MIN_UNIX_S, StreamClock
-from asvtwin.units import KNOT_M_S
+from asvtwin.sources.ais.validation import ReportValidator, TimeReference
 
 __all__ = ["DYNAMIC_TYPES", "STATIC_TYPES", "AisPipeline", "LogCensus"]
 
@@ -54,74 +62,27 @@ DYNAMIC_TYPES = frozenset({1, 2, 3, 18, 19})
 STATIC_TYPES = frozenset({5, 19, 24})
 #: Fewest payload bits each used type needs (ITU-R M.1371; type 5 tolerates 420).
 _MIN_BITS = {1: 168, 2: 168, 3: 168, 18: 168, 19: 312, 5: 420, 24: 160}
-_NAN = math.nan
-_TWO_PI = 2.0 * math.pi
-_DEG = math.pi / 180.0
-_ROT_DEG_MIN = math.pi / 180.0 / 60.0  # deg/min -> rad/s
-#: The AIS 6-bit armouring alphabet (ITU-R M.1371 / IEC 61162-1): "0".."W" and "`".."w".
-_ARMOUR = bytes(range(48, 88)) + bytes(range(96, 120))
-_STARTS = b"\\!$"
+#: What pyais raises for a payload it cannot decode.
+_DECODE_FAILURES = (AISBaseException, ValueError, IndexError, KeyError, TypeError)
 
 
-def _as_bytes(line: object) -> bytes:
-    if isinstance(line, str):
-        return line.encode("utf-8", "surrogateescape")
-    return bytes(line)  # type: ignore[call-overload]
+class _Batch(TimeReference):
+    """The state of one :meth:`AisPipeline.feed_batch` call, shared by its stages."""
 
+    __slots__ = ("P", "fast", "recv_t", "rows", "slow", "static", "station", "t")
 
-def _text(value: object) -> str | None:
-    """AIS 6-bit text without the ``@`` padding and blanks; None when empty."""
-    if not isinstance(value, str):
-        return None
-    s = value.replace("@", " ").strip()
-    return s or None
-
-
-def _positive_or_none(value: object) -> int | None:
-    return int(value) if isinstance(value, int) and value > 0 else None  # type: ignore[arg-type]
-
-
-def _resync(raw: bytes) -> int:
-    """Where a sentence starts after a garbage prefix, or -1: the first ``\\`` or ``!`` (AIS
-    lines start so), else the first ``$``. Only the part after the last non-ASCII byte is
-    searched (the sentence must be clean ASCII)."""
-    start = 0
-    if not raw.isascii():
-        start = max(i for i, b in enumerate(raw) if b > 127) + 1
-    found = [k for k in (raw.find(b"\\", start), raw.find(b"!", start)) if k >= 0]
-    if not found:
-        return raw.find(b"$", start)
-    k = min(found)
-    # a backslash right before "!" closes a tag block the garbage cut: keep the sentence
-    return k + 1 if raw[k] == 92 and raw[k + 1:k + 2] == b"!" else k
-
-
-@dataclass
-class LogCensus:
-    """What a log holds regardless of the twin's filters (``AisPipeline(census=True)``).
-
-    Attributes
-    ----------
-    mmsis : set of int
-        The MMSI of every assembled message with a checksum-valid sentence, of any type.
-    t_first_unix_s, t_last_unix_s : float or None
-        Earliest and latest plausible (2000..2100) tag-block time of any checksum-valid line.
-    timed_lines, untimed_lines : int
-        Checksum-valid sentences with and without a tag-block time.
-    """
-
-    mmsis: set[int] = field(default_factory=set)
-    t_first_unix_s: float | None = None
-    t_last_unix_s: float | None = None
-    timed_lines: int = 0
-    untimed_lines: int = 0
-
-    def see_time(self, t: float) -> None:
-        self.timed_lines += 1
-        if self.t_first_unix_s is None or t < self.t_first_unix_s:
-            self.t_first_unix_s = t
-        if self.t_last_unix_s is None or t > self.t_last_unix_s:
-            self.t_last_unix_s = t
+    def __init__(self, clock_now: float | None, ref: float | None, lead: float,
+                 lag_limit: float, recv_t: float | None, P: bytes, fast: FastLines,
+                 hwm: float | None) -> None:
+        super().__init__(clock_now, ref, lead, lag_limit, hwm)
+        self.recv_t = recv_t  #: receive time for lines without a tag time [UNIX s]
+        self.P = P  #: prefix XOR of the joined batch (every checksum)
+        self.fast = fast  #: the batch's canonical position reports, decoded at once
+        self.rows: list[int] = []  #: accepted reports: row in fast + slow columns
+        self.t: list[float] = []  #: accepted reports' times [UNIX s]
+        self.station: list[str | None] = []
+        self.static: list[AisStatic] = []
+        self.slow: list[tuple[Any, ...]] = []  #: position reports decoded by pyais
 
 
 class AisPipeline:
@@ -160,6 +121,10 @@ class AisPipeline:
         time and no time checks (a log summary of an untagged log).
     census : bool
         Keep a :class:`LogCensus` (every MMSI, the tag-time span) in :attr:`census`.
+    batch_decode : bool
+        Decode the batch's one-sentence position reports at once with numpy
+        (:mod:`~asvtwin.sources.ais.positions`). False sends every message through pyais:
+        the same reports and counts, about twice the time (for cross-checks and benchmarks).
     """
 
     def __init__(self, scene: Scene | None = None, *, clock: Callable[[], float] | None = None,
@@ -167,7 +132,8 @@ class AisPipeline:
                  max_lag_s: float = 600.0, dedup_window_s: float = 30.0,
                  fragment_timeout_s: float = 10.0, max_pending: int = 1024,
                  max_tracked_mmsi: int = 200_000, bounds: bool = True,
-                 require_time: bool = True, census: bool = False) -> None:
+                 require_time: bool = True, census: bool = False,
+                 batch_decode: bool = True) -> None:
         for name, v in (("max_future_s", max_future_s), ("max_jump_s", max_jump_s),
                         ("max_lag_s", max_lag_s), ("dedup_window_s", dedup_window_s),
                         ("fragment_timeout_s", fragment_timeout_s)):
@@ -177,28 +143,24 @@ class AisPipeline:
             if n < 1:
                 raise ParameterError(f"AisPipeline: {name} must be >= 1, actually: {n}")
         self.scene = scene if scene is not None else default_scene()
-        b = self.scene.bounds
-        self._box = (b.lat_min_deg, b.lat_max_deg, b.lon_min_deg, b.lon_max_deg)
         self._clock = clock
         self._max_future_s = float(max_future_s)
         self._max_jump_s = float(max_jump_s)
         self._max_lag_s = float(max_lag_s)
-        self._dedup_s = float(dedup_window_s)
-        self._max_tracked = int(max_tracked_mmsi)
-        self._bounds = bool(bounds)
-        self._require_time = bool(require_time)
+        self._batch_decode = bool(batch_decode)
         self.census: LogCensus | None = LogCensus() if census else None
         self.counters = ErrorCounter()
         self.notices = ErrorCounter(what="accepted with a quirk")
         self.fragments = FragmentAssembler(self.counters, timeout_s=fragment_timeout_s,
                                            max_pending=max_pending)
+        self.duplicates = DuplicateFilter(dedup_window_s)
         self.stream_clock = StreamClock()
-        self._seen: dict[bytes, float] = {}
-        self._last_t: dict[int, float] = {}
+        self.tags = TagCache()
+        self.validator = ReportValidator(self.scene.bounds, self.counters, self.notices,
+                                         self.stream_clock, bounds=bounds,
+                                         require_time=require_time,
+                                         max_tracked_mmsi=max_tracked_mmsi)
         self._hwm: float | None = None  # latest accepted report time [UNIX s]
-        self._tag_cache: dict[bytes, tuple[Any, ...]] = {}  # (t + offset, station, c_only)
-        self._bad_tag_cache: dict[bytes, tuple[Any, ...]] = {}  # (ErrorKind, detail)
-        self._tag_offset = 0.0
         self._lines = 0
         self._by_type: dict[int, int] = {}
         self._n_reports = 0
@@ -220,7 +182,7 @@ class AisPipeline:
     @property
     def dedup_window_s(self) -> float:
         """Identical payloads closer than this are one transmission heard twice [s]."""
-        return self._dedup_s
+        return self.duplicates.window_s
 
     @property
     def latest_time_unix_s(self) -> float | None:
@@ -268,334 +230,253 @@ class AisPipeline:
         ReportBatch
             Accepted dynamic reports (columnar, NED) and static records, in input order.
         """
-        # The stages of the module docstring, inline: this loop runs ~100 000 times a second
-        # and a function call per stage would cost a third of the time budget over pyais.
-        cols: tuple[list[Any], ...] = ([], [], [], [], [], [], [], [], [], [], [])
-        (c_t, c_lat, c_lon, c_sog, c_cog, c_hdg, c_rot, c_mmsi, c_type, c_nav,
-         c_station) = cols
-        static: list[AisStatic] = []
-        count = self.counters.count
-        notice = self.notices.count
-        produce = NMEASentenceFactory.produce
-        by_type = self._by_type
-        seen = self._seen
-        last_t = self._last_t
-        tags = self._tag_cache
-        bad_tags = self._bad_tag_cache
-        frags = self.fragments
-        census = self.census
+        raws = [(r if type(r) is bytes else as_bytes(r)).strip() for r in lines]
+        run = self._start(raws, recv_time_s, time_offset_s)
+        f_index, f_len = run.fast.index, run.fast.sentence_len
+        o_next = 0
+        n_lines = 0
+        for i, raw in enumerate(raws):
+            o = o_next
+            o_next += len(raw)
+            if not raw:
+                continue
+            n_lines += 1
+            framed = self._frame(run, raw, o)  # 1. framing, tag block
+            if framed is None:
+                continue
+            raw, o, b0, t, station = framed
+            j = f_index[i]
+            if j >= 0 and len(raw) - b0 == f_len[j]:  # a canonical position report
+                self._position_report(run, j, raw, t, station)
+            else:
+                self._message(run, raw, o, b0, t, station)
+        self._lines += n_lines
+        return self._end(run)
+
+    # ------------------------------------------------------------------ the stages
+    def _start(self, raws: list[bytes], recv_time_s: float | None,
+               time_offset_s: float) -> _Batch:
+        """Read the clock, set the time references, checksum and pre-decode the batch."""
         stream = self.stream_clock
-        recent = stream.recent
-        n_recent_max = 2 * stream.window
-        lat_lo, lat_hi, lon_lo, lon_hi = self._box
-        starts, armour, min_bits = _STARTS, _ARMOUR, _MIN_BITS  # locals: read per line
-        t_min, t_max = T_MIN_UNIX_S, T_MAX_UNIX_S
-        bounds = self._bounds
-        dedup_s = self._dedup_s
-        hwm = self._hwm
-        raws = [(r if type(r) is bytes else _as_bytes(r)).strip() for r in lines]
         clock_now = self._clock() if self._clock is not None else None
         if clock_now is None and stream.reference is None:
             self._prime(raws)
-        ref: Any = clock_now if clock_now is not None else stream.reference  # float or None
-        lead = self._max_future_s if clock_now is not None else self._max_jump_s
-        lag_limit = clock_now - self._max_lag_s if clock_now is not None else -math.inf
+        ref = clock_now if clock_now is not None else stream.reference
         if recv_time_s is not None:
             recv_time_s += time_offset_s
             if T_MIN_UNIX_S <= recv_time_s <= T_MAX_UNIX_S:
                 stream.observe(recv_time_s)  # receive times count once per batch
                 if clock_now is None:
                     ref = stream.reference
-        if time_offset_s != self._tag_offset:  # cached tag times include the offset
-            tags.clear()
-            self._tag_offset = time_offset_s
-        # Checksums of every sentence and tag block from one prefix XOR over the batch:
-        # xor(buf[a:b]) = P[b-1] ^ P[a-1] (NMEA: XOR of the bytes between the delimiters)
-        joined = b"".join(raws)
-        P = np.bitwise_xor.accumulate(np.frombuffer(joined, np.uint8)).tobytes() if joined else b""
-        o_next = 0
-        n_lines = 0
-        t: Any  # float or None (the hot loop narrows by hand)
-        for raw in raws:
-            o = o_next
-            o_next += len(raw)
-            if not raw:
-                continue
-            n_lines += 1
-            # --- 1. sentence: ASCII, resync after garbage, tag block, checksum, fields
-            if raw[0] not in starts or not raw.isascii():
-                k = _resync(raw)
-                if k <= 0:
-                    count(ErrorKind.NON_ASCII if not raw.isascii() else ErrorKind.TRUNCATED,
-                          raw, "no sentence start (\\ ! $) in clean ASCII")
-                    continue
-                notice(NoticeKind.RESYNCED, raw, f"{k} bytes of garbage before the sentence")
-                raw = raw[k:]
-                o += k
-            t = recv_time_s
-            station = None
-            b0 = 0  # where the sentence starts in raw
-            if raw[0] == 92:  # b"\\": IEC 61162-450 tag block
-                end = raw.find(b"\\", 1)
-                if end < 0:
-                    count(ErrorKind.TRUNCATED, raw, "tag block not closed")
-                    continue
-                b0 = end + 1
-                if b0 == len(raw):
-                    count(ErrorKind.TAG_BLOCK_WITHOUT_PAYLOAD, raw)
-                    continue
-                tag = raw[1:end]
-                parsed = tags.get(tag)
-                if parsed is None:  # a new tag (a new second or station): parse, check, cache
-                    parsed = bad_tags.get(tag)
-                    if parsed is None:
-                        parsed = self._parse_tag(tag, P, o, time_offset_s)
-                        cache = bad_tags if len(parsed) == 2 else tags
-                        if len(cache) > 1024:
-                            cache.clear()
-                        cache[tag] = parsed
-                        t_tag = parsed[0] if len(parsed) == 3 else None
-                        if t_tag is not None and t_min <= t_tag <= t_max:
-                            recent.append(t_tag)  # robust stream time: every distinct time
-                            if len(recent) >= n_recent_max:
-                                stream.update()
-                                if clock_now is None:
-                                    ref = stream.reference
-                    if len(parsed) == 2:  # (kind, detail): rejected
-                        count(parsed[0], raw, parsed[1])
-                        continue
-                if parsed[0] is not None:
-                    t = parsed[0]  # offset included (the caches are per offset)
-                elif t is not None:
-                    notice(NoticeKind.RECEIVE_TIME, raw, "tag block without c:")
-                station = parsed[1]
-                if parsed[2]:
-                    notice(NoticeKind.TAG_CHECKSUM_C_ONLY, raw,
-                           "tag checksum over c: alone (the national feed's group convention)")
-                body = raw[b0:]
-            else:
-                body = raw
-                if t is not None:
-                    notice(NoticeKind.RECEIVE_TIME, raw, "no tag block")
-            star = body.rfind(b"*")
-            if star < 0 or len(body) - star != 3 or body[0] not in (33, 36):  # "!" or "$"
-                count(ErrorKind.TRUNCATED, raw, "sentence does not end in *hh")
-                continue
-            try:
-                expected = int(body[star + 1:], 16)
-            except ValueError:
-                count(ErrorKind.TRUNCATED, raw, "checksum is not hexadecimal")
-                continue
-            actual = P[o + b0 + star - 1] ^ P[o + b0]
-            if actual != expected:
-                count(ErrorKind.BAD_CHECKSUM, raw,
-                      f"checksum 0x{actual:02X} computed, 0x{expected:02X} in the sentence")
-                continue
-            try:
-                msg: Any = produce(body)
-            except AISBaseException as exc:
-                kind = ErrorKind.NOT_AIS if type(exc).__name__ == "UnknownMessageException" \
-                    else ErrorKind.MALFORMED
-                count(kind, raw, str(exc)[:80])
-                continue
-            if msg.TYPE != "AIS":
-                count(ErrorKind.NOT_AIS, raw)
-                continue
-            if body[5] == 79:  # "!xxVDO": the own ship's transponder
-                count(ErrorKind.OWN_SHIP, raw, "VDO is the own ship's report, not a target")
-                continue
-            if body[star - 2] != 44 or not 48 <= body[star - 1] <= 53:  # pyais reads "x" as 0
-                count(ErrorKind.MALFORMED, raw, "fill bits must be one digit 0..5")
-                continue
-            if msg.payload.translate(None, armour):
-                bad = msg.payload.translate(None, armour)[:1].decode("ascii", "replace")
-                count(ErrorKind.DECODE_ERROR, raw,
-                      f"payload character {bad!r} is outside the AIS 6-bit alphabet")
-                continue
-            # the fragment timeout, on every line whose time is not a lie (a line dated hours
-            # ahead must not expire other stations' messages)
-            if t is not None and t > frags.deadline and (ref is None or t <= ref + lead):
-                frags.expire(t)
-            if census is not None:
-                if t is not None and t_min <= t <= t_max:
-                    census.see_time(t)
-                else:
-                    census.untimed_lines += 1
-            # --- 2. assembly
-            if msg.frag_cnt > 1:
-                done = frags.add(msg, t, station, raw)
-                if done is None:
-                    continue
-                msg, t, station = done
-            payload = msg.payload
-            ais_id = msg.ais_id
-            if ais_id not in min_bits and not payload:  # (an empty payload reads as type 0)
-                count(ErrorKind.SHORT_PAYLOAD, raw, "empty payload")
-                continue
-            by_type[ais_id] = by_type.get(ais_id, 0) + 1
-            if census is not None and len(msg.bv) >= 38:
-                census.mmsis.add(msg.bv.get(8, 30))
-            if ais_id not in min_bits:
-                continue  # a type the twin does not use: counted by type only
-            # --- 3. duplicates (the hwm test keeps this independent of the batch size: the
-            # trim at the end of a batch only drops payloads this test would ignore anyway)
+        self.tags.set_offset(time_offset_s)  # cached tag times include the offset
+        # every checksum of the batch from one prefix XOR: xor(buf[a:b]) = P[b-1] ^ P[a-1]
+        P = prefix_xor(b"".join(raws))
+        return _Batch(clock_now, ref,
+                      self._max_future_s if clock_now is not None else self._max_jump_s,
+                      clock_now - self._max_lag_s if clock_now is not None else -math.inf,
+                      recv_time_s, P, scan_fast_lines(raws, P) if self._batch_decode
+                      else no_fast_lines(len(raws)), self._hwm)
+
+    def _frame(self, run: _Batch, raw: bytes, o: int
+               ) -> tuple[bytes, int, int, float | None, str | None] | None:
+        """1. Framing and tag block: ``(raw, o, b0, t, station)`` with the sentence at
+        ``raw[b0:]`` (``raw`` after any garbage prefix, at offset ``o`` of the batch), or
+        None when rejected (counted)."""
+        if raw[0] not in STARTS or not raw.isascii():
+            k = resync(raw)
+            if k <= 0:
+                self.counters.count(ErrorKind.NON_ASCII if not raw.isascii()
+                                    else ErrorKind.TRUNCATED, raw,
+                                    "no sentence start (\\ ! $) in clean ASCII")
+                return None
+            self.notices.count(NoticeKind.RESYNCED, raw,
+                               f"{k} bytes of garbage before the sentence")
+            raw = raw[k:]
+            o += k
+        if raw[0] != 92:  # no b"\\": no IEC 61162-450 tag block
+            if run.recv_t is not None:
+                self.notices.count(NoticeKind.RECEIVE_TIME, raw, "no tag block")
+            return raw, o, 0, run.recv_t, None
+        end = raw.find(b"\\", 1)
+        if end < 0:
+            self.counters.count(ErrorKind.TRUNCATED, raw, "tag block not closed")
+            return None
+        if end + 1 == len(raw):
+            self.counters.count(ErrorKind.TAG_BLOCK_WITHOUT_PAYLOAD, raw)
+            return None
+        tag = raw[1:end]
+        parsed = self.tags.get(tag)
+        if parsed is None:  # a new tag (a new second or station): parse, check, cache
+            parsed = self.tags.parse(tag, run.P, o)
+            t_tag = parsed[0] if len(parsed) == 3 else None
+            if t_tag is not None and T_MIN_UNIX_S <= t_tag <= T_MAX_UNIX_S:
+                stream = self.stream_clock
+                stream.recent.append(t_tag)  # robust stream time: every distinct time
+                if len(stream.recent) >= 2 * stream.window:
+                    stream.update()
+                    if run.clock_now is None:
+                        run.ref = stream.reference
+        if len(parsed) == 2:  # (kind, detail): rejected
+            self.counters.count(parsed[0], raw, parsed[1])
+            return None
+        t = parsed[0]  # offset included (the cache is per offset)
+        if t is None:
+            t = run.recv_t
             if t is not None:
-                prev = seen.get(payload)
-                if prev is not None:
-                    if abs(t - prev) <= dedup_s and (hwm is None or prev >= hwm - 2 * dedup_s):
-                        count(ErrorKind.DUPLICATE, raw, f"same payload {t - prev:.1f} s apart")
-                        continue
-                    del seen[payload]  # re-insert at the end: the dict stays in time order
-                seen[payload] = t
-            # --- 4. decode
-            if len(msg.bv) < min_bits[ais_id]:
-                count(ErrorKind.SHORT_PAYLOAD, raw,
-                      f"type {ais_id} needs {min_bits[ais_id]} bits, actually {len(msg.bv)}")
-                continue
-            try:
-                m = msg.decode()
-            except (AISBaseException, ValueError, IndexError, KeyError, TypeError) as exc:
-                count(ErrorKind.DECODE_ERROR, raw, str(exc)[:80])
-                continue
-            # --- 5. validation
-            mmsi = m.mmsi
-            if not 0 < mmsi <= 999_999_999:
-                count(ErrorKind.INVALID_MMSI, raw, f"MMSI in 1..999999999 expected, actually {mmsi}")
-                continue
-            timed = t is not None
-            if not timed:
-                if self._require_time:
-                    count(ErrorKind.MISSING_TIME, raw, "no tag block c: and no receive time")
-                    continue
-                notice(NoticeKind.UNTIMED, raw, "no time: accepted without time checks")
-                t = _NAN
-            elif not t_min <= t <= t_max:
-                count(ErrorKind.INVALID_TIME, raw, f"time in 2000..2100 expected, actually {t}")
-                continue
-            if ais_id == 5 or ais_id == 24 or ais_id == 19:
-                static.append(self._static(m, ais_id, t))
-                self._n_static += 1
-                if ais_id != 19:
-                    continue
-            lat = m.lat
-            lon = m.lon
-            # inside the scene's box (the usual case) is valid and available; outside it, why
-            if not (lat_lo <= lat <= lat_hi and lon_lo <= lon <= lon_hi):
-                if lat == 91.0 or lon == 181.0:
-                    count(ErrorKind.POSITION_UNAVAILABLE, raw, f"lat {lat}, lon {lon}")
-                    continue
-                if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-                    count(ErrorKind.INVALID_POSITION, raw, "lat in [-90, 90] and lon in "
-                          f"[-180, 180] expected, actually {lat}, {lon}")
-                    continue
-                if bounds:
-                    count(ErrorKind.OUTSIDE_SCENE, raw,
-                          f"lat {lat_lo}..{lat_hi}, lon {lon_lo}..{lon_hi} expected, "
-                          f"actually {lat}, {lon}")
-                    continue
-                notice(NoticeKind.OUTSIDE_SCENE_KEPT, raw, "outside the scene box, kept")
-            if timed:  # time order, not far ahead of the clock or the stream
-                if ref is not None and t > ref + lead:
-                    if clock_now is None:
-                        ref = stream.update()  # recompute before rejecting (quiet feeds)
-                    if t > ref + lead:
-                        count(ErrorKind.TIME_FUTURE, raw, f"time <= {ref + lead:.0f} expected "
-                              f"({'receive clock' if clock_now is not None else 'stream time'}"
-                              f" + {lead:g} s), actually {t:.0f}")
-                        continue
-                last = last_t.get(mmsi)
-                if last is not None and t < last:
-                    count(ErrorKind.TIME_BACKWARDS, raw, f"time >= {last:.3f} (last report of "
-                          f"{mmsi}) expected, actually {t:.3f}")
-                    continue
-                if t < lag_limit:
-                    notice(NoticeKind.CLOCK_LAG, raw, f"{clock_now - t:.0f} s behind the "
-                           "receive clock")
-                last_t[mmsi] = t
-                if hwm is None or t > hwm:
-                    hwm = t
-            c_t.append(t)
-            c_lat.append(lat)
-            c_lon.append(lon)
-            c_sog.append(m.speed)
-            c_cog.append(m.course)
-            c_hdg.append(m.heading)
-            if ais_id <= 3:
-                c_rot.append(m.turn)  # deg/min; TurnRate ±127/-128 (no value) float as such
-                c_nav.append(m.status)
+                self.notices.count(NoticeKind.RECEIVE_TIME, raw, "tag block without c:")
+        if parsed[2]:
+            self.notices.count(NoticeKind.TAG_CHECKSUM_C_ONLY, raw,
+                               "tag checksum over c: alone (the national feed's group "
+                               "convention)")
+        return raw, o, end + 1, t, parsed[1]
+
+    def _checked_line(self, run: _Batch, t: float | None) -> None:
+        """After a line's sentence checks passed: the fragment timeout, on every line whose
+        time is not a lie (a line dated hours ahead must not expire other stations'
+        messages), and the census."""
+        frags = self.fragments
+        if t is not None and t > frags.deadline and (run.ref is None or t <= run.ref + run.lead):
+            frags.expire(t)
+        census = self.census
+        if census is not None:
+            if t is not None and T_MIN_UNIX_S <= t <= T_MAX_UNIX_S:
+                census.see_time(t)
             else:
-                c_rot.append(_NAN)
-                c_nav.append(15)
-            c_mmsi.append(mmsi)
-            c_type.append(ais_id)
-            c_station.append(station)
-        self._lines += n_lines
-        self._hwm = hwm
-        self._n_reports += len(c_t)
-        if clock_now is not None and stream.update() is not None:
-            self._clock_lag_s = clock_now - stream.reference  # type: ignore[operator]
-        if len(last_t) > self._max_tracked:
-            self._trim_tracked()
-        self._trim_seen()
-        if not c_t:
-            return ReportBatch.empty(tuple(static))
-        return self._batch(cols, tuple(static))
+                census.untimed_lines += 1
 
-    # ------------------------------------------------------------------ stages off the hot path
-    def _batch(self, cols: tuple[list[Any], ...], static: tuple[AisStatic, ...]) -> ReportBatch:
-        """6. Columns -> SI, "not available" -> NaN, projection to NED (vectorised)."""
-        (c_t, c_lat, c_lon, c_sog, c_cog, c_hdg, c_rot, c_mmsi, c_type, c_nav,
-         c_station) = cols
-        lat_a = np.array(c_lat)
-        lon_a = np.array(c_lon)
-        north, east = self.scene.frame.to_ned(lat_a, lon_a)
-        sog = np.array(c_sog)
-        cog = np.array(c_cog)
-        hdg = np.array(c_hdg, dtype=np.float64)
-        rot = np.array(c_rot, dtype=np.float64)
-        nav = np.array(c_nav, dtype=np.int64)
-        return ReportBatch(
-            mmsi=np.array(c_mmsi, dtype=np.int64), t_unix_s=np.array(c_t),
-            msg_type=np.array(c_type, dtype=np.int64), north_m=north, east_m=east,
-            lat_deg=lat_a, lon_deg=lon_a,
-            sog_m_s=np.where(sog >= 102.3, np.nan, sog * KNOT_M_S),
-            cog_rad=np.where(cog >= 360.0, np.nan, (cog * _DEG + np.pi) % _TWO_PI - np.pi),
-            heading_rad=np.where(hdg >= 360.0, np.nan, (hdg * _DEG + np.pi) % _TWO_PI - np.pi),
-            # decoded ROT is round((k / 4.733)^2) deg/min (k <= 126), never 127 or 128: those
-            # are pyais's TurnRate values for "no turn information" / "turning, no value"
-            rot_rad_s=np.where(np.isin(np.abs(rot), (127.0, 128.0)), np.nan, rot * _ROT_DEG_MIN),
-            nav_status=np.where(nav == 15, -1, nav), station=tuple(c_station),
-            static=static, frame=self.scene.frame,
-        )
+    def _position_report(self, run: _Batch, j: int, raw: bytes, t: float | None,
+                         station: str | None) -> None:
+        """1.-5. for row ``j`` of the batch's canonical position reports (decoded in
+        :meth:`_start`; the regular expression that chose them holds the field checks)."""
+        fast = run.fast
+        computed, sent = fast.checksum[j]
+        if computed != sent:
+            self.counters.count(ErrorKind.BAD_CHECKSUM, raw, f"checksum 0x{computed:02X} "
+                                f"computed, 0x{sent:02X} in the sentence")
+            return
+        self._checked_line(run, t)
+        ais_id = fast.msg_type[j]  # 2. (one sentence: nothing to assemble)
+        self._by_type[ais_id] = self._by_type.get(ais_id, 0) + 1
+        mmsi = fast.mmsi[j]
+        if self.census is not None:
+            self.census.mmsis.add(mmsi)
+        if t is not None and self._duplicate(run, fast.payload[j], t, raw):  # 3.
+            return
+        t = self.validator.identity_and_time(raw, mmsi, t)  # 4. decoded; 5.
+        if t is not None and self.validator.position(run, raw, mmsi, t, fast.lat_deg[j],
+                                                     fast.lon_deg[j]):
+            run.rows.append(j)
+            run.t.append(t)
+            run.station.append(station)
 
-    @staticmethod
-    def _parse_tag(tag: bytes, P: bytes, o: int, offset: float) -> tuple[Any, ...]:
-        """A tag block as ``(t + offset, station, c_only)`` or ``(ErrorKind, detail)``
-        (cached); ``tag`` is ``raw[1:end]`` of the line at offset ``o`` of the batch's prefix
-        XOR ``P``."""
-        star = tag.rfind(b"*")
-        whole = (P[o + star] ^ P[o]) if star > 0 else None  # xor(raw[1:1 + star])
-        if whole is not None and len(tag) - star == 3:
-            # the common form "s:station,c:digits" with the standard checksum, parsed here
-            # (this path runs for a third of a feed's lines: each new second and station)
-            fields = tag[:star].split(b",")
-            if len(fields) == 2 and fields[0][:2] == b"s:" and fields[1][:2] == b"c:":
-                c = fields[1][2:]
-                try:
-                    ok = c.isdigit() and len(c) <= 16 and int(tag[star + 1:], 16) == whole
-                except ValueError:
-                    ok = False
-                if ok:
-                    secs = float(c)
-                    return ((secs / 1000.0 if secs > 1e11 else secs) + offset,
-                            fields[0][2:].decode("ascii", "backslashreplace"), False)
+    def _message(self, run: _Batch, raw: bytes, o: int, b0: int, t: float | None,
+                 station: str | None) -> None:
+        """1.-5. for a line that is not a canonical position report, with pyais."""
+        count = self.counters.count
+        body = raw[b0:] if b0 else raw
+        star = body.rfind(b"*")
+        if star < 0 or len(body) - star != 3 or body[0] not in (33, 36):  # "!" or "$"
+            count(ErrorKind.TRUNCATED, raw, "sentence does not end in *hh")
+            return
         try:
-            t, station, c_only = parse_tag_block_time(tag, whole)
-        except TagBlockError as exc:
-            return (ErrorKind.BAD_TAG_CHECKSUM if exc.checksum else ErrorKind.BAD_TAG_BLOCK,
-                    str(exc))
-        return (None if t is None else t + offset, station, c_only)
+            expected = int(body[star + 1:], 16)
+        except ValueError:
+            count(ErrorKind.TRUNCATED, raw, "checksum is not hexadecimal")
+            return
+        P = run.P
+        actual = P[o + b0 + star - 1] ^ P[o + b0]
+        if actual != expected:
+            count(ErrorKind.BAD_CHECKSUM, raw,
+                  f"checksum 0x{actual:02X} computed, 0x{expected:02X} in the sentence")
+            return
+        msg = check_ais(body, star)
+        if isinstance(msg, tuple):
+            count(msg[0], raw, msg[1])
+            return
+        self._checked_line(run, t)
+        if msg.frag_cnt > 1:  # 2. assembly
+            done = self.fragments.add(msg, t, station, raw)
+            if done is None:
+                return
+            msg, t, station = done
+        m = self._decode(run, msg, t, raw)  # 3.-4.
+        if m is None:
+            return
+        ais_id = msg.ais_id
+        mmsi = m.mmsi
+        t = self.validator.identity_and_time(raw, mmsi, t)  # 5.
+        if t is None:
+            return
+        if ais_id == 5 or ais_id == 24 or ais_id == 19:
+            run.static.append(static_record(m, ais_id, t))
+            self._n_static += 1
+            if ais_id != 19:
+                return
+        if self.validator.position(run, raw, mmsi, t, m.lat, m.lon):
+            run.rows.append(-1 - len(run.slow))  # counted from the end: after the fast rows
+            run.slow.append(pyais_row(m, ais_id))
+            run.t.append(t)
+            run.station.append(station)
 
+    def _duplicate(self, run: _Batch, payload: bytes, t: float, raw: bytes) -> bool:
+        """3. The same payload again within the window: counted, True."""
+        prev = self.duplicates.is_duplicate(payload, t, run.hwm)
+        if prev is None:
+            return False
+        self.counters.count(ErrorKind.DUPLICATE, raw, f"same payload {t - prev:.1f} s apart")
+        return True
+
+    def _decode(self, run: _Batch, msg: AISSentence, t: float | None, raw: bytes) -> Any:
+        """2.-4. for a pyais message: count its type, drop duplicates, check its length and
+        decode it; None for a type the twin does not use or a rejection (counted)."""
+        payload = msg.payload
+        ais_id = msg.ais_id
+        if ais_id not in _MIN_BITS and not payload:  # (an empty payload reads as type 0)
+            self.counters.count(ErrorKind.SHORT_PAYLOAD, raw, "empty payload")
+            return None
+        self._by_type[ais_id] = self._by_type.get(ais_id, 0) + 1
+        if self.census is not None and len(msg.bv) >= 38:
+            self.census.mmsis.add(msg.bv.get(8, 30))
+        if ais_id not in _MIN_BITS:
+            return None  # a type the twin does not use: counted by type only
+        if t is not None and self._duplicate(run, payload, t, raw):
+            return None
+        if len(msg.bv) < _MIN_BITS[ais_id]:
+            self.counters.count(ErrorKind.SHORT_PAYLOAD, raw, f"type {ais_id} needs "
+                                f"{_MIN_BITS[ais_id]} bits, actually {len(msg.bv)}")
+            return None
+        try:
+            return msg.decode()
+        except _DECODE_FAILURES as exc:
+            self.counters.count(ErrorKind.DECODE_ERROR, raw, str(exc)[:80])
+            return None
+
+    def _end(self, run: _Batch) -> ReportBatch:
+        """6. The batch's accepted reports as columns in SI and NED; state trimmed."""
+        self._hwm = run.hwm
+        self._n_reports += len(run.rows)
+        stream = self.stream_clock
+        if run.clock_now is not None and stream.update() is not None:
+            self._clock_lag_s = run.clock_now - stream.reference  # type: ignore[operator]
+        self.validator.trim()
+        self.duplicates.trim(self._hwm)
+        static = tuple(run.static)
+        if not run.rows:
+            return ReportBatch.empty(static)
+        fast = run.fast.columns
+        rows = np.array(run.rows, np.int64)
+        if run.slow:  # pyais-decoded rows go after the fast ones
+            n_fast = len(fast.mmsi)
+            rows = np.where(rows < 0, n_fast - 1 - rows, rows)
+            slow = list(zip(*run.slow))
+            cols = {k: np.concatenate((getattr(fast, k), np.array(slow[c], np.float64)))
+                    for c, k in enumerate(COLUMNS)}
+        else:
+            cols = {k: getattr(fast, k) for k in COLUMNS}
+        return report_batch({k: v[rows] for k, v in cols.items()}, run.t, run.station,
+                            static, self.scene.frame)
+
+    # ------------------------------------------------------------------ state upkeep
     def _prime(self, raws: list[bytes]) -> None:
         """Start the stream time from the tag times of a stream's first lines."""
         times = []
@@ -608,46 +489,3 @@ class AisPipeline:
                 if t is not None:
                     times.append(t)
         self.stream_clock.prime(times)
-
-    def _trim_seen(self) -> None:
-        """Forget payloads older than the dedup window (the dict is in time order)."""
-        seen = self._seen
-        if self._hwm is None or not seen:
-            return
-        oldest = self._hwm - 2 * self._dedup_s
-        # one pass, then delete: next(iter(seen)) after each deletion would rescan the freed
-        # slots at the front of the dict every time (quadratic in the payloads per batch)
-        stale = []
-        for payload, t in seen.items():
-            if t >= oldest:
-                break
-            stale.append(payload)
-        for payload in stale:
-            del seen[payload]
-        if len(seen) > 200_000:  # a pathological feed (times far apart): start afresh
-            seen.clear()
-
-    def _trim_tracked(self) -> None:
-        """Forget the MMSIs heard longest ago (keeps memory bounded under MMSI churn)."""
-        items = sorted(self._last_t.items(), key=lambda kv: kv[1])
-        self._last_t = dict(items[len(items) // 2:])
-
-    @staticmethod
-    def _static(m: object, ais_id: int, t: float) -> AisStatic:
-        g = m.__getattribute__
-        draught = g("draught") if ais_id == 5 else None
-        imo = g("imo") if ais_id == 5 else None
-        has_dims = hasattr(m, "to_bow")
-        return AisStatic(
-            mmsi=int(g("mmsi")), t_unix_s=t, msg_type=ais_id,
-            name=_text(getattr(m, "shipname", None)),
-            callsign=_text(getattr(m, "callsign", None)),
-            ship_type=_positive_or_none(int(st)) if (st := getattr(m, "ship_type", None)) is not None else None,
-            imo=_positive_or_none(imo),
-            to_bow_m=_positive_or_none(g("to_bow")) if has_dims else None,
-            to_stern_m=_positive_or_none(g("to_stern")) if has_dims else None,
-            to_port_m=_positive_or_none(g("to_port")) if has_dims else None,
-            to_starboard_m=_positive_or_none(g("to_starboard")) if has_dims else None,
-            draught_m=float(draught) if draught else None,
-            destination=_text(getattr(m, "destination", None)),
-        )
