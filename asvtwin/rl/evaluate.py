@@ -16,7 +16,7 @@ import numpy as np
 
 from asvtwin.rl.config import EnvConfig, check_setup
 from asvtwin.rl.policy import NumpyPolicy
-from asvtwin.rl.scenarios import Scenario, random_scenario
+from asvtwin.rl.scenarios import N_STATIC, Scenario, random_scenario
 from asvtwin.rl.vec_env import EpisodeRecord, VecPathEnv
 
 __all__ = ["HELD_OUT_SEED", "EvalResult", "evaluate_policy", "held_out_scenarios"]
@@ -46,17 +46,28 @@ class EvalResult:
     interventions_per_episode: float
     fallbacks_per_episode: float
     records: tuple[EpisodeRecord, ...]
+    #: One entry per collision: what was hit and how fast (see :func:`evaluate_policy`).
+    collisions: tuple[dict[str, Any], ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
         d.pop("records")
+        d.pop("collisions")
         return d
 
 
 def evaluate_policy(policy: NumpyPolicy | str | Path, setup: str, family: str, *,
                     n_episodes: int = 20, env_config: EnvConfig | None = None
                     ) -> EvalResult:
-    """Play ``n_episodes`` held-out scenarios of ``family`` with ``policy`` in ``setup``."""
+    """Play ``n_episodes`` held-out scenarios of ``family`` with ``policy`` in ``setup``.
+
+    Each collision is described in ``EvalResult.collisions``: the scenario index, whether
+    the obstacle hit was moving, its speed and the own ship's top speed U_max [m/s]
+    (``faster``: the obstacle outran the ship, so no manoeuvre of the ship alone can
+    always keep clear of it), the own speed at contact [m/s], the shortest LiDAR ray
+    [m] against the collision threshold (the ship's length) and the filter's
+    interventions and fallbacks in that episode.
+    """
     check_setup(setup)
     pol = policy if isinstance(policy, NumpyPolicy) else NumpyPolicy.load(policy)
     cfg = dataclasses.replace(env_config or EnvConfig(), setup=setup, family=family)
@@ -68,6 +79,7 @@ def evaluate_policy(policy: NumpyPolicy | str | Path, setup: str, family: str, *
     obs = world._observe()
     records: list[EpisodeRecord | None] = [None] * n_episodes
     live = np.ones(n_episodes, dtype=bool)
+    hits: list[dict[str, Any]] = []
     while live.any():
         a = pol.act(obs)
         a[~live] = (-1.0, 0.0)  # finished ships coast (their steps are not counted)
@@ -76,6 +88,8 @@ def evaluate_policy(policy: NumpyPolicy | str | Path, setup: str, family: str, *
             if rec is not None and live[i]:
                 records[i] = rec
                 live[i] = False
+                if rec.collision:
+                    hits.append(_collision(world, i, rec))
     done = [r for r in records if r is not None]
     world.close()
     return EvalResult(
@@ -86,5 +100,19 @@ def evaluate_policy(policy: NumpyPolicy | str | Path, setup: str, family: str, *
         mean_progress=float(np.mean([r.progress for r in done])),
         interventions_per_episode=float(np.mean([r.interventions for r in done])),
         fallbacks_per_episode=float(np.mean([r.fallbacks for r in done])),
-        records=tuple(done),
+        records=tuple(done), collisions=tuple(hits),
     )
+
+
+def _collision(world: VecPathEnv, i: int, rec: EpisodeRecord) -> dict[str, Any]:
+    """What environment ``i`` (just ended by a collision, not reset) ran into."""
+    k = int(np.argmin(world.ranges[i]))
+    j = int(world.hit[i, k])
+    moving = j >= N_STATIC
+    speed = float(np.hypot(*world.moving0[i, j - N_STATIC, 2:4])) if moving else 0.0
+    return {"scenario": i, "moving": moving, "obstacle_speed_m_s": round(speed, 4),
+            "U_max_m_s": round(world.U_max, 4), "faster": bool(speed > world.U_max),
+            "own_speed_m_s": round(float(np.hypot(*world.x[i, 3:5])), 4),
+            "shortest_ray_m": round(float(world.ranges[i, k]), 4),
+            "threshold_m": world.collision_m, "interventions": rec.interventions,
+            "fallbacks": rec.fallbacks}

@@ -12,6 +12,11 @@ policy on held-out scenarios (:mod:`asvtwin.rl.evaluate`) and writes into ``out`
   the seeds' range shaded;
 - ``collisions.csv``: total collisions during training per setup and seed;
 - ``evaluation.csv``: held-out results per setup, seed and scenario family;
+- ``library.csv``: each run's policy on the scenario library's open-water encounters
+  (:mod:`asvtwin.rl.library`: collision, goal, closest distance against the library's
+  requirement), with the line-of-sight expert as baseline when given;
+- ``eval_collisions.csv``: every held-out collision (obstacle speed against the ship's
+  top speed, shortest ray, filter use);
 - ``study.json``: the request, per-run results and timing.
 
 A run is a pure function of (setup, seed, steps, configs): the same seeds give the same
@@ -39,8 +44,8 @@ import numpy as np
 from asvtwin.errors import ConfigError, MissingExtraError
 from asvtwin.rl.config import SETUPS, EnvConfig, PpoConfig, check_setup
 
-__all__ = ["STUDY_FAMILIES", "collect_runs", "load_episodes", "plot_training", "run_one",
-           "run_study", "write_study"]
+__all__ = ["STUDY_FAMILIES", "collect_runs", "evaluate_run", "library_baselines",
+           "load_episodes", "plot_training", "run_one", "run_study", "write_study"]
 
 log = logging.getLogger(__name__)
 
@@ -50,39 +55,33 @@ STUDY_FAMILIES = ("static", "moving")
 
 def run_one(setup: str, seed: int, steps: int, out_dir: str, env: dict[str, Any],
             ppo: dict[str, Any], eval_episodes: int, checkpoint_every: int,
-            resume: bool = False) -> dict[str, Any]:
+            resume: bool = False, library: Sequence[str] | None = None) -> dict[str, Any]:
     """Train one (setup, seed) and evaluate it; a plain-data result (picklable)."""
-    from asvtwin.rl.evaluate import evaluate_policy
     from asvtwin.rl.train import train
 
     env_cfg = EnvConfig.from_dict(env)
     ppo_cfg = PpoConfig(**{**ppo, "net_arch": tuple(ppo["net_arch"])})
     res = train(setup, steps=steps, seed=seed, out_dir=out_dir, env_config=env_cfg,
                 ppo=ppo_cfg, checkpoint_every=checkpoint_every, resume=resume)
-    evals = []
-    if eval_episodes > 0:
-        for fam in STUDY_FAMILIES:
-            ev = evaluate_policy(res.policy_path, setup, fam, n_episodes=eval_episodes,
-                                 env_config=env_cfg)
-            evals.append(dict(ev.to_dict(), seed=seed))
     result = {"setup": setup, "seed": seed, "steps": res.steps, "episodes": res.episodes,
               "collisions": res.collisions, "wall_s": res.wall_s,
               "steps_per_s": res.steps_per_s, "out_dir": str(res.out_dir),
-              "policy_path": str(res.policy_path), "evaluation": evals}
+              "policy_path": str(res.policy_path),
+              **evaluate_run(res.policy_path, setup, seed, eval_episodes, env_cfg,
+                             library=library)}
     (Path(out_dir) / "result.json").write_text(json.dumps(result, indent=1))
     return result
 
 
 def collect_runs(run_dirs: Sequence[str | Path], *, eval_episodes: int = 0,
-                 env: EnvConfig | None = None) -> list[dict[str, Any]]:
+                 env: EnvConfig | None = None, library: Sequence[str] | None = None
+                 ) -> list[dict[str, Any]]:
     """Results of run directories, finished or not (e.g. stopped at a deadline).
 
     A finished run's ``result.json`` is used as written; otherwise the run is described
     from ``run.json`` and ``episodes.csv`` (``"finished": False``, ``steps`` the last
     logged step) and, when it has a ``policy.npz`` and ``eval_episodes`` > 0, evaluated.
     """
-    from asvtwin.rl.evaluate import evaluate_policy
-
     out: list[dict[str, Any]] = []
     for d in map(Path, run_dirs):
         if (d / "result.json").exists():
@@ -94,13 +93,11 @@ def collect_runs(run_dirs: Sequence[str | Path], *, eval_episodes: int = 0,
         setup, _, seed = d.name.rpartition("_seed")
         setup = run.get("setup", setup)
         finished = bool(run.get("finished")) and (d / "policy.npz").exists()
-        evals = []
+        ev: dict[str, Any] = {"evaluation": [], "library": [], "collision_details": []}
         if finished and eval_episodes > 0:
             cfg = EnvConfig.from_dict(run["env"]) if "env" in run else (env or EnvConfig())
-            for fam in STUDY_FAMILIES:
-                ev = evaluate_policy(d / "policy.npz", setup, fam, n_episodes=eval_episodes,
-                                     env_config=cfg)
-                evals.append(dict(ev.to_dict(), seed=int(seed)))
+            ev = evaluate_run(d / "policy.npz", setup, int(run.get("seed", seed)),
+                              eval_episodes, cfg, library=library)
         out.append({"setup": setup, "seed": int(run.get("seed", seed)),
                     "steps": int(run["checkpoint_step"]) if finished else
                     (int(rows[-1]["global_step"]) if rows else 0),
@@ -109,15 +106,64 @@ def collect_runs(run_dirs: Sequence[str | Path], *, eval_episodes: int = 0,
                     "wall_s": float(rows[-1]["wall_s"]) if rows else 0.0,
                     "steps_per_s": float(run.get("steps_per_s", 0.0)), "out_dir": str(d),
                     "policy_path": str(d / "policy.npz") if finished else "",
-                    "evaluation": evals, "finished": finished})
+                    **ev, "finished": finished})
     return out
 
 
-def write_study(out: str | Path, results: list[dict[str, Any]]) -> None:
-    """Write the study's CSVs and figure for ``results`` (see the module docstring)."""
+def evaluate_run(policy_path: str | Path, setup: str, seed: int, eval_episodes: int,
+                 env: EnvConfig, *, library: Sequence[str] | None = None
+                 ) -> dict[str, Any]:
+    """A trained policy on the held-out scenarios of :data:`STUDY_FAMILIES`
+    (``eval_episodes`` each) and on the scenario library's encounters
+    (:mod:`asvtwin.rl.library`; ``library`` names a subset, default all that fit), in
+    its own setup. Nothing when ``eval_episodes`` is 0.
+
+    Returns ``evaluation`` (one row per family), ``library`` (one row per encounter) and
+    ``collision_details`` (each held-out collision: obstacle speed against U_max, the
+    shortest ray, filter use)."""
+    from asvtwin.rl.evaluate import evaluate_policy
+    from asvtwin.rl.library import evaluate_library, library_encounters
+
+    evals: list[dict[str, Any]] = []
+    hits: list[dict[str, Any]] = []
+    lib: list[dict[str, Any]] = []
+    if eval_episodes > 0:
+        for fam in STUDY_FAMILIES:
+            ev = evaluate_policy(policy_path, setup, fam, n_episodes=eval_episodes,
+                                 env_config=env)
+            evals.append(dict(ev.to_dict(), seed=seed))
+            hits += [dict(h, setup=setup, seed=seed, family=fam) for h in ev.collisions]
+        from asvtwin.rl.policy import NumpyPolicy
+
+        encs = [e for e in library_encounters()[0] if library is None or e.name in library]
+        lib = [dict(r.to_dict(), seed=seed) for r in
+               evaluate_library(NumpyPolicy.load(policy_path), setup, encounters=encs,
+                                env_config=env)]
+    return {"evaluation": evals, "library": lib, "collision_details": hits}
+
+
+def library_baselines(env: EnvConfig | None = None) -> list[dict[str, Any]]:
+    """The line-of-sight expert on the library's encounters without the filter (``los``)
+    and behind the filter with the moving obstacles' prediction (``los_psf``): the
+    reference a trained policy must match to replace ``los_psf`` as the default."""
+    from asvtwin.rl.library import LosExpertPolicy, evaluate_library
+
+    cfg = env or EnvConfig()
+    out: list[dict[str, Any]] = []
+    for name, setup in (("los", "ppo"), ("los_psf", "ppo_psf_moving")):
+        out += [dict(r.to_dict(), seed=-1) for r in
+                evaluate_library(LosExpertPolicy(cfg.n_rays), setup, controller=name,
+                                 env_config=cfg)]
+    return out
+
+
+def write_study(out: str | Path, results: list[dict[str, Any]],
+                baselines: Sequence[dict[str, Any]] = ()) -> None:
+    """Write the study's CSVs and figure for ``results`` (see the module docstring);
+    ``baselines`` (:func:`library_baselines`) join the library table."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    _write_outputs(out, results)
+    _write_outputs(out, results, baselines)
 
 
 def _ray_map(tasks: list[tuple[Any, ...]], address: str) -> list[dict[str, Any]]:
@@ -146,6 +192,7 @@ def run_study(*, setups: Sequence[str] = SETUPS, seeds: Sequence[int] = (0, 1, 2
               ray_address: str | None = None, env: EnvConfig | None = None,
               ppo: PpoConfig | None = None, eval_episodes: int = 20,
               checkpoint_every: int = 50_000, resume: bool = False,
+              library: Sequence[str] | None = None,
               on_done: Callable[[dict[str, Any]], None] | None = None) -> dict[str, Any]:
     """Train and evaluate every (setup, seed); write the CSVs, the figure and study.json."""
     for s in setups:
@@ -161,7 +208,8 @@ def run_study(*, setups: Sequence[str] = SETUPS, seeds: Sequence[int] = (0, 1, 2
     env_d = env.to_dict()
     ppo_d = dataclasses.asdict(ppo)
     tasks = [(s, int(seed), int(steps), str(out / "runs" / f"{s}_seed{seed}"), env_d, ppo_d,
-              int(eval_episodes), int(checkpoint_every), resume)
+              int(eval_episodes), int(checkpoint_every), resume,
+              None if library is None else tuple(library))
              for seed in seeds for s in setups]
     t0 = time.perf_counter()
     results: list[dict[str, Any]] = []
@@ -204,7 +252,16 @@ def load_episodes(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     return rows
 
 
-def _write_outputs(out: Path, results: list[dict[str, Any]]) -> None:
+def _write_dicts(path: Path, rows: Sequence[dict[str, Any]]) -> None:
+    with open(path, "w", newline="") as fh:
+        if rows:
+            dw = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            dw.writeheader()
+            dw.writerows(rows)
+
+
+def _write_outputs(out: Path, results: list[dict[str, Any]],
+                   baselines: Sequence[dict[str, Any]] = ()) -> None:
     rows = load_episodes(results)
     keys = ["setup", "seed", "global_step", "length", "reward", "r_path", "r_colav",
             "r_psf", "r_exists", "r_collision", "collision", "collision_moving", "goal",
@@ -230,12 +287,11 @@ def _write_outputs(out: Path, results: list[dict[str, Any]]) -> None:
                         round(float(np.mean([x["collision"] for x in last])), 3) if last else "",
                         round(float(np.mean([x["mean_abs_cte_m"] for x in last])), 2)
                         if last else ""])
-    with open(out / "evaluation.csv", "w", newline="") as fh:
-        evals = [e for r in results for e in r["evaluation"]]
-        if evals:
-            dw = csv.DictWriter(fh, fieldnames=list(evals[0]))
-            dw.writeheader()
-            dw.writerows(evals)
+    _write_dicts(out / "evaluation.csv", [e for r in results for e in r["evaluation"]])
+    _write_dicts(out / "library.csv",
+                 [e for r in results for e in r.get("library", [])] + list(baselines))
+    _write_dicts(out / "eval_collisions.csv",
+                 [e for r in results for e in r.get("collision_details", [])])
     fig = plot_training(rows)
     fig.savefig(out / "training.png", dpi=110)
 

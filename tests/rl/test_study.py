@@ -45,6 +45,15 @@ def test_quick_study_cli(tmp_path: Path) -> None:
         ev = list(csv.DictReader(fh))
     assert {(e["setup"], e["family"]) for e in ev} == {
         (s, f) for s in ("ppo", "ppo_psf", "ppo_psf_moving") for f in ("static", "moving")}
+    with open(out / "library.csv", newline="") as fh:
+        lib = list(csv.DictReader(fh))
+    # the quick study plays the head-on library encounter with each setup's policy
+    assert [(r["setup"], r["encounter"]) for r in lib] == [
+        (s, "head_on") for s in ("ppo", "ppo_psf", "ppo_psf_moving")]
+    for r in lib:  # distances at the library's own scale (s = 70) against its 150 m
+        assert float(r["min_centre_distance_m"]) == pytest.approx(
+            70.0 * float(r["min_centre_distance_model_m"]), rel=1e-3)
+        assert float(r["required_m"]) == 150.0
     assert (out / "training.png").stat().st_size > 10_000
     # the filtered setups called the filter at least as configured: counts are logged
     assert all(r["filter_calls"] == "0" for r in all_rows if r["setup"] == "ppo")
