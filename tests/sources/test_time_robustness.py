@@ -4,14 +4,24 @@ future-dated report must not move the clock or wipe the picture, a lagging feed 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import threading
 import time
+from collections.abc import Iterator
 
+import numpy as np
 import pytest
 
 from asvtwin.cli import main
-from asvtwin.sources.ais import AisPipeline, FileReplaySource, TargetRegistry, encode_report
+from asvtwin.sources.ais import (
+    AisPipeline,
+    Backoff,
+    FileReplaySource,
+    TargetRegistry,
+    TcpAisSource,
+    encode_report,
+)
 from asvtwin.sources.ais.source import Pacer
 
 from .conftest import LAT, LON, T0, report, tagged
@@ -132,37 +142,94 @@ def test_duration_of_a_replay_counts_stream_time_of_reports_outside_the_scene(tm
     assert 250 <= n <= 1300, out
 
 
-def test_a_lagging_feed_clock_is_said_and_the_table_is_not_empty(capsys) -> None:
-    """Before: tag times years old over a live TCP feed gave an empty table, no error."""
-    old = T0 - 2 * 365 * 86400.0
-    lines = [tagged(encode_report(report(mmsi=257_000_001 + k, t=old + k)), old + k)
-             for k in range(5)]
-    ready, port = threading.Event(), {}
+@contextlib.contextmanager
+def _serve(lines: list[str], hold_s: float = 1.5) -> Iterator[int]:
+    """A TCP server on 127.0.0.1 (ephemeral port) that writes ``lines`` to each client, keeps
+    the connection ``hold_s`` and closes it; runs in a thread inside the ``with``. Yields the
+    port."""
+    ready, stop, port = threading.Event(), threading.Event(), {}
 
     def server() -> None:
         async def handle(reader, writer):
             writer.write(("\n".join(lines) + "\n").encode())
             await writer.drain()
-            await asyncio.sleep(1.5)
+            await asyncio.sleep(hold_s)
             writer.close()
 
         async def run():
             srv = await asyncio.start_server(handle, "127.0.0.1", 0)
             port["p"] = srv.sockets[0].getsockname()[1]
             ready.set()
-            await asyncio.sleep(3.0)
+            while not stop.is_set():
+                await asyncio.sleep(0.05)
             srv.close()
 
         asyncio.run(run())
 
-    threading.Thread(target=server, daemon=True).start()
-    assert ready.wait(5.0)
-    assert main(["ais", "listen", f"tcp://127.0.0.1:{port['p']}", "--duration", "1.0",
-                 "--no-live"]) == 0
+    thread = threading.Thread(target=server, daemon=True)
+    thread.start()
+    assert ready.wait(10.0)
+    try:
+        yield port["p"]
+    finally:
+        stop.set()
+        thread.join(10.0)
+
+
+#: Two years behind the scenario time T0 (the receive clock is the machine's, later still).
+OLD = T0 - 2 * 365 * 86400.0
+
+
+def _lagging_lines() -> list[str]:
+    """Five vessels in the fjord, national-feed format (``\\s:...,c:...*hh\\!BSVDM...``),
+    tag times two years old."""
+    return [tagged(encode_report(report(mmsi=257_000_001 + k, t=OLD + k)), OLD + k)
+            for k in range(5)]
+
+
+def test_a_lagging_feed_clock_is_said_and_the_table_is_not_empty(capsys, tmp_path) -> None:
+    """Before: tag times years old over a live TCP feed were stored but the table was empty
+    (every target evicted against the receive clock), with no word of why."""
+    db = tmp_path / "lag.sqlite"
+    with _serve(_lagging_lines()) as port:
+        t_listen = time.time()
+        assert main(["ais", "listen", f"tcp://127.0.0.1:{port}", "--duration", "1.0",
+                     "--no-live", "--db", str(db)]) == 0
     out = " ".join(capsys.readouterr().out.split())
-    assert "lag the receive clock by" in out and "feed_clock_lags 5" in out
+    # counted: all five reports kept, each counted as the notice, none rejected
+    assert "feed_clock_lags 5" in out and "reports 5 " in out, out
+    assert "time_future" not in out and "time_backwards" not in out
+    # said: by how much the feed lags, and at which time the table is shown
+    days = float(out.split("lag the receive clock by ")[1].split(" days")[0])
+    assert abs(days - (t_listen - (OLD + 1)) / 86400.0) < 0.1, out  # stream time: OLD + 1
+    assert "the table is shown at the feed's time" in out
     for k in range(5):
         assert str(257_000_001 + k) in out  # shown at the feed's time, not evicted
+    assert "recording: 5 reports" in out  # and stored
+
+
+def test_a_lagging_live_tcp_feed_is_delivered_counted_and_its_lag_measured() -> None:
+    """The API half: a TcpAisSource with the receive clock hands out every report of the
+    lagging feed, counts each as ``feed_clock_lags`` and measures the lag in its status."""
+
+    async def run(src: TcpAisSource) -> list[int]:
+        got: list[int] = []
+        async for batch in src.batches():
+            got += batch.mmsi.tolist()
+        return got
+
+    with _serve(_lagging_lines(), hold_s=0.3) as port:
+        src = TcpAisSource("127.0.0.1", port, clock=time.time, max_reconnects=0,
+                           backoff=Backoff(rng=np.random.default_rng(0), initial_s=0.05,
+                                           max_s=0.05))
+        t0 = time.time()
+        mmsis = asyncio.run(asyncio.wait_for(run(src), 10.0))
+    st = src.status().stats
+    assert sorted(mmsis) == [257_000_001 + k for k in range(5)]
+    assert st.notices == {"feed_clock_lags": 5}
+    assert set(st.errors) <= {"disconnected"}
+    assert st.clock_lag_s is not None
+    assert abs(st.clock_lag_s - (t0 - (OLD + 1))) < 15.0  # 2 years + (now - T0), to seconds
 
 
 def test_stats_json_reports_stream_time(tmp_path, capsys) -> None:
