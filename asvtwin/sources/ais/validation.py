@@ -131,10 +131,10 @@ class ReportValidator:
         if ref is not None and t > ref + run.lead:
             if run.clock_now is None:
                 ref = run.ref = self.stream_clock.update()  # recompute (quiet feeds)
-            if t > ref + run.lead:  # type: ignore[operator]
+            if ref is not None and t > ref + run.lead:
                 src = "receive clock" if run.clock_now is not None else "stream time"
                 self.counters.count(ErrorKind.TIME_FUTURE, raw,
-                                    f"time <= {ref + run.lead:.0f} expected "  # type: ignore[operator]
+                                    f"time <= {ref + run.lead:.0f} expected "
                                     f"({src} + {run.lead:g} s), actually {t:.0f}")
                 return False
         last = self.last_t.get(mmsi)
