@@ -1,4 +1,5 @@
-"""AIS for the twin: NMEA decoding on pyais, validation, sources, targets with dead reckoning.
+"""AIS for the twin: NMEA decoding (pyais, and a numpy batch decoder for the one-sentence
+position reports), validation, sources, targets with dead reckoning.
 
 An AIS source is an async iterator of validated messages (:class:`AisReport`,
 :class:`AisStatic`) in the scene's NED frame, all decoded by one :class:`AisPipeline`:
