@@ -55,6 +55,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def fork_source(source: str, at_s: float) -> tuple[Any, Any, Any]:
     """(fork, land, own params) from a recording or a scenario run up to ``at_s``."""
+    from asvtwin.errors import ParameterError
     from asvtwin.scenarios import Scenario, load_any, resolve_scene
     from asvtwin.twin import Recording, Twin
     from asvtwin.twin.runtime import own_params
@@ -65,6 +66,10 @@ def fork_source(source: str, at_s: float) -> tuple[Any, Any, Any]:
     if path.suffix == ".mcap":
         rec = Recording(path)
         scen = Scenario.model_validate(rec.scenario) if rec.scenario else None
+        end = rec.duration_s
+        if at_s > end + 1.0:
+            raise ParameterError(f"whatif --at {at_s:g} s is after the last snapshot of "
+                                 f"{path} (t = {end:.1f} s); choose --at in [0, {end:.1f}]")
         msg = rec.message_at(at_s)
         cruise = scen.own_ship.cruise_speed_kn * KNOT_M_S if scen else None
         land = resolve_scene(scen).land if scen else None

@@ -17,16 +17,30 @@ Draws (:func:`draw_samples`, from a ``numpy.random.Generator``):
 
 The safety filter (:class:`~asvtwin.control.SafetyFilter`, one per filtered future, a
 cheap object once the solver is loaded) is the expensive part: 100 futures × 240 calls of
-~1–4 ms is minutes of CPU. Its economy (``economy=True``):
+~1–4 ms is minutes of CPU, and a call that has to solve costs 10–100 ms. Its economy
+(``economy=True``), cheapest first:
 
-1. the filter is called only while an obstacle (a target or the coast) is *within reach
+1. the filter is asked only while an obstacle (a target or the coast) is *within reach
    of its horizon*: own and target can close the gap within N·Δt at their speeds; out of
    reach it could only return u_L, so u_L is applied;
-2. a certified answer's plan is *followed* (its input of the present stage) for
+2. the filter's own first step, *batched across futures*
+   (:class:`~asvtwin.whatif.certify.ULCertifier`): "u_L now, then the rest of the last
+   certified plan" or "u_L now, then coast" is re-simulated on the filter's model and
+   certified by its compiled kernels for every due future at once; a certified future
+   gets u_L, exactly what the filter would have answered (it is stricter than the
+   filter, never looser: ``tests/whatif/test_certify.py``). Only the others call the
+   filter;
+3. a certified solver plan is *followed* (its input of the present stage) for
    ``plan_hold_stages`` stages (4 × 4.2 s at full scale, 4 × 0.5 s at model scale): the
    plan is certified for the predicted obstacles over its whole horizon, so following it
-   stays safe unless a target departs from its prediction, which the next call sees; an
-   uncertified answer or a fallback is re-solved at the twin's filter rate.
+   stays safe unless a target departs from its prediction, which the next call sees;
+4. a fallback plan (nothing certified) is followed for ``fallback_hold_stages`` stage
+   (one 4.2 s stage at full scale instead of re-solving every 0.5 s; at model scale the
+   stage is the period, so nothing changes).
+
+The solver is shared by the filters of a process; its iterate is reset before every call,
+so a future's answer does not depend on which future solved before it (same seed, same
+answer with any number of workers).
 
 ``tests/whatif/test_rollout.py`` measures the economy against the full-rate filter: the
 collision probability agrees within its confidence interval.
@@ -42,12 +56,14 @@ from numpy.typing import NDArray
 
 from asvtwin.checks import F8 as _F8
 from asvtwin.control import CoastSegments, MovingObstacles, PsfConfig, SafetyFilter
+from asvtwin.control.backends import backend_lock
 from asvtwin.environment import wind_force, wind_vector
 from asvtwin.errors import ParameterError
 from asvtwin.geo import LandMask
 from asvtwin.guidance import HeadingSpeedAutopilot, LosGuidance
 from asvtwin.vessel import BatchSimulator, VesselParams
 from asvtwin.whatif.alternatives import Alternative
+from asvtwin.whatif.certify import ULCertifier
 from asvtwin.whatif.fork import Fork
 
 __all__ = ["RolloutConfig", "RolloutResult", "Samples", "draw_samples", "simulate"]
@@ -85,6 +101,9 @@ class RolloutConfig:
         Period of the stored trajectories (ghost futures) [s].
     plan_hold_stages : int
         Economy: stages of a certified plan followed before the next filter call.
+    fallback_hold_stages : int
+        Economy: stages of a fallback plan followed before the next filter call (0: the
+        filter is asked again at its period, as at the full rate).
     """
 
     horizon_s: float = 120.0
@@ -100,6 +119,7 @@ class RolloutConfig:
     tracker_q: float = 0.01
     record_every_s: float = 5.0
     plan_hold_stages: int = 4
+    fallback_hold_stages: int = 1
 
     def __post_init__(self) -> None:
         for name in ("horizon_s", "turn_max_deg", "record_every_s"):
@@ -114,9 +134,11 @@ class RolloutConfig:
         if not (0 <= self.p_keep <= 1 and 0 <= self.p_turn <= 1 - self.p_keep):
             raise ParameterError(f"RolloutConfig: intent probabilities p_keep={self.p_keep}, "
                                  f"p_turn={self.p_turn} must be in [0, 1] with a sum <= 1")
-        if not (isinstance(self.plan_hold_stages, int) and 1 <= self.plan_hold_stages <= 50):
-            raise ParameterError(f"RolloutConfig.plan_hold_stages must be an integer in "
-                                 f"[1, 50], actually: {self.plan_hold_stages!r}")
+        for name, lo in (("plan_hold_stages", 1), ("fallback_hold_stages", 0)):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and lo <= v <= 50):
+                raise ParameterError(f"RolloutConfig.{name} must be an integer in [{lo}, 50], "
+                                     f"actually: {v!r}")
         if not 1.0 <= self.speed_up_max <= 3.0:
             raise ParameterError(f"RolloutConfig.speed_up_max must be in [1, 3], actually: "
                                  f"{self.speed_up_max}")
@@ -210,7 +232,8 @@ class RolloutResult:
             "min_distance_m", "t_min_s", "clearance_m", "collision", "grounding",
             "land_clearance_m", "filter_calls", "interventions", "fallbacks", "track")}
         info = dict(parts[0].info)
-        for k in ("filter_calls", "filters_built"):
+        for k in ("filter_calls", "filters_built", "u_L_precertified",
+                  "filter_kept_u_L"):
             info[k] = float(sum(p.info.get(k, 0.0) for p in parts))
         return RolloutResult(**cat, track_t_s=parts[0].track_t_s, info=info)
 
@@ -328,11 +351,17 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
     inter = np.zeros(A * R, np.int64)
     falls = np.zeros(A * R, np.int64)
     reach_t = 0.0
+    cert: ULCertifier | None = None
+    due_segs: dict[int, _F8] = {}
+    n_precert = 0
+    n_passed = 0  # filter calls that kept u_L
+    certified_plan: dict[int, tuple[float, _F8]] = {}  # per future: the filter's last plan
     if any(a.filter for a in alternatives):
         proto = SafetyFilter(p, config=PsfConfig(backend=cfg.psf_backend))
         N, pdt = proto.config.N, proto.config.dt_s
         reach_t = N * pdt
         coast_r = reach_t * float(proto.nu_max[0]) + proto.d_safe_m + proto.d_f_m
+        cert = ULCertifier(proto, r_t, fork.track_cov[:, :2, :2], cfg.tracker_q * pdt)
     mind = np.full((A, R, m), np.inf)
     tmin = np.zeros((A, R, m))
     land_min = np.full(A * R, np.inf)
@@ -360,6 +389,7 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
         u_apply = u_L.copy()
         # safety filter (per future, Python loop over the filtered ones that are due)
         if proto is not None:
+            due_j: list[int] = []
             for i, a in enumerate(alternatives):
                 if not a.filter:
                     continue
@@ -370,15 +400,15 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
                         plan = plans.get(j)
                         if plan is None:
                             u_apply[j] = u0[j]
-                        else:  # follow the certified plan: its input of the present stage
+                        else:  # follow the held plan: its input of the present stage
                             kk = min(int((t - plan[0]) / pdt + 1e-9), N - 1)
                             u_apply[j] = plan[1][kk]
                         continue
-                    pos, vel = tg.p[r], tg.velocity[r]
                     xj = x[j]
                     segs = (land.segments_within(xj[:2], coast_r) if land is not None
                             else np.zeros((0, 4)))
                     if cfg.economy:
+                        pos, vel = tg.p[r], tg.velocity[r]
                         gap = np.hypot(pos[:, 0] - xj[0], pos[:, 1] - xj[1]) - r_t
                         close = (float(np.hypot(xj[3], xj[4])) + np.hypot(vel[:, 0], vel[:, 1])) \
                             * reach_t + proto.d_safe_m + proto.d_f_m
@@ -387,33 +417,80 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
                             next_call[j] = t + fper
                             u0[j] = u_L[j]
                             continue
-                    f = filt.get(j)
-                    if f is None:
-                        f = filt[j] = SafetyFilter(p, config=PsfConfig(backend=cfg.psf_backend))
-                    obs: list[MovingObstacles | CoastSegments] = []
-                    if m:
-                        obs.append(MovingObstacles.constant_velocity(
-                            pos, vel, r_t, N=N, dt_s=pdt,
-                            covariances=fork.track_cov[:, :2, :2],
-                            process_noise=cfg.tracker_q * pdt,
-                            ids=[int(q) for q in fork.track_ids]))
-                    if len(segs):
-                        obs.append(CoastSegments(segs))
-                    res = f.filter(xj, u_L[j], obs, samples.d[r], t_s=fork.t_s + t)
-                    n_filtered += 1
-                    calls[j] += 1
-                    u0[j] = res.u0
-                    u_apply[j] = res.u0
-                    inter[j] += int(res.intervened)
-                    falls[j] += int(res.fallback != "none")
-                    # economy: a certified plan is followed for plan_hold_stages of its
-                    # stages; an uncertified answer or a fallback is re-solved at fper
-                    if cfg.economy and res.success and res.fallback == "none":
-                        plans[j] = (t, np.asarray(res.u_pred, dtype=float))
-                        next_call[j] = t + max(cfg.plan_hold_stages * pdt, fper)
+                    due_j.append(j)
+                    due_segs[j] = segs
+            if due_j and cfg.economy and cert is not None:
+                # the filter's first step, batched: "u_L now, then coast" certified
+                jj = np.array(due_j)
+                ii, rr = jj // R, jj % R
+                pos = np.stack([targets[i].p[r] for i, r in zip(ii, rr)]).reshape(len(jj), m, 2)
+                vel = np.stack([targets[i].velocity[r] for i, r in zip(ii, rr)]
+                               ).reshape(len(jj), m, 2)
+                tails: list[_F8 | None] = []
+                for j in due_j:  # the rest of the last certified plan, as the filter's
+                    last = certified_plan.get(j)
+                    s_i = -1 if last is None else round((t - last[0]) / pdt)
+                    if last is not None and 0 <= s_i < N - 1:
+                        tail = np.zeros((N, 3))
+                        rest = last[1][s_i + 1:]
+                        tail[1: 1 + len(rest)] = rest
+                        tails.append(tail)
                     else:
-                        plans.pop(j, None)
-                        next_call[j] = t + fper
+                        tails.append(None)
+                ok, kept = cert.certified(x[jj], u_L[jj], samples.d[rr], pos, vel,
+                                          [due_segs[j] for j in due_j], tails)
+                for q in np.flatnonzero(ok):
+                    j = int(jj[q])
+                    plans.pop(j, None)
+                    due_segs.pop(j, None)
+                    certified_plan[j] = (t, kept[q])  # type: ignore[assignment]
+                    next_call[j] = t + fper
+                    u0[j] = np.clip(u_L[j], proto.u_lb, proto.u_ub)
+                    u_apply[j] = u0[j]
+                n_precert += int(ok.sum())
+                due_j = [int(j) for j in jj[~ok]]
+            for j in due_j:
+                i, r = divmod(j, R)
+                tg = targets[i]
+                f = filt.get(j)
+                if f is None:
+                    f = filt[j] = SafetyFilter(p, config=PsfConfig(backend=cfg.psf_backend))
+                obs: list[MovingObstacles | CoastSegments] = []
+                if m:
+                    obs.append(MovingObstacles.constant_velocity(
+                        tg.p[r], tg.velocity[r], r_t, N=N, dt_s=pdt,
+                        covariances=fork.track_cov[:, :2, :2],
+                        process_noise=cfg.tracker_q * pdt,
+                        ids=[int(q) for q in fork.track_ids]))
+                segs = due_segs.pop(j)
+                if len(segs):
+                    obs.append(CoastSegments(segs))
+                # the solver is shared per process: start every call from a zero iterate,
+                # so a future's answer does not depend on which future solved before it
+                # (same seed, same answer with any number of workers)
+                with backend_lock(f.backend):
+                    f.backend.reset()
+                res = f.filter(x[j], u_L[j], obs, samples.d[r], t_s=fork.t_s + t)
+                n_filtered += 1
+                n_passed += int(res.passed_through)
+                calls[j] += 1
+                u0[j] = res.u0
+                u_apply[j] = res.u0
+                inter[j] += int(res.intervened)
+                falls[j] += int(res.fallback != "none")
+                if res.success:
+                    certified_plan[j] = (t, np.asarray(res.u_pred, dtype=float))
+                # economy: a certified solver plan is followed for plan_hold_stages of its
+                # stages, a fallback plan for one stage; u_L kept is asked again at fper
+                if not cfg.economy or res.passed_through:
+                    plans.pop(j, None)
+                    next_call[j] = t + fper
+                elif res.success and res.fallback == "none":
+                    plans[j] = (t, np.asarray(res.u_pred, dtype=float))
+                    next_call[j] = t + max(cfg.plan_hold_stages * pdt, fper)
+                else:
+                    plans[j] = (t, np.asarray(res.u_pred, dtype=float))
+                    next_call[j] = t + max(cfg.fallback_hold_stages * pdt, fper)
         # disturbance
         d = d_base.copy()
         for i, w in enumerate(wind_rise):
@@ -445,4 +522,5 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
         filter_calls=calls.reshape(sh), interventions=inter.reshape(sh),
         fallbacks=falls.reshape(sh), track=np.stack(rec, axis=2), track_t_s=np.array(rec_t),
         info={"filter_calls": float(n_filtered), "filters_built": float(len(filt)),
+              "u_L_precertified": float(n_precert), "filter_kept_u_L": float(n_passed),
               "steps": float(steps), "dt_s": dt, "filter_period_s": fper})
