@@ -34,9 +34,39 @@ from mcap.writer import CompressionType, Writer
 
 from asvtwin.twin.snapshot import SCHEMA_ID, json_schema
 
-__all__ = ["METADATA_NAME", "TOPICS", "Recorder"]
+__all__ = ["METADATA_NAME", "TOPICS", "ZSTD_LEVEL", "Recorder"]
 
 _log = logging.getLogger(__name__)
+
+#: zstd level of the chunks. The mcap writer calls ``zstandard.compress`` at the library
+#: default (3); on the twin's snapshot stream level 1 is 5x faster for < 2 % more bytes
+#: (measured on 20 snapshots of the benchmark scene: 345 kB vs 350 kB of 1.1 MB, 13 ms vs
+#: 67 ms). Readers see ordinary zstd frames either way.
+ZSTD_LEVEL = 1
+
+
+class _ZstdAtLevel:
+    """Stands in for the ``zstandard`` module inside ``mcap.writer`` so its chunks are
+    compressed at :data:`ZSTD_LEVEL`; everything else is the real module."""
+
+    def __init__(self, module: Any, level: int) -> None:
+        self._module = module
+        self._level = int(level)
+
+    def compress(self, data: bytes) -> bytes:
+        # a compressor per chunk: ZstdCompressor objects are not thread-safe, and two
+        # twins may record in two threads
+        return bytes(self._module.ZstdCompressor(level=self._level).compress(data))
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._module, name)
+
+
+def _use_fast_zstd() -> None:
+    import mcap.writer as mw
+
+    if mw.zstandard is not None and not isinstance(mw.zstandard, _ZstdAtLevel):
+        mw.zstandard = _ZstdAtLevel(mw.zstandard, ZSTD_LEVEL)  # type: ignore[assignment]
 
 #: The metadata record's name.
 METADATA_NAME = "asvtwin.run"
@@ -126,6 +156,7 @@ class Recorder:
         self.closed = False
         self._seq = 0
         self._writer: Writer | None = None
+        _use_fast_zstd()
         try:
             w = Writer(self._stream, chunk_size=int(chunk_size),  # type: ignore[arg-type]
                        compression=CompressionType.ZSTD)

@@ -59,6 +59,7 @@ from asvtwin.twin.controllers import (
     make_controller,
     uses_filter,
 )
+from asvtwin.twin.live import LiveAisFeed
 from asvtwin.twin.recorder import Recorder
 from asvtwin.twin.scheduler import Scheduler
 from asvtwin.twin.snapshot import (
@@ -137,21 +138,33 @@ class Twin:
     ais_evict_after_s : float
         An AIS target not heard for this long leaves the twin's picture [s] (it is shown
         stale after three reporting intervals, at least 30 s).
+    epoch_unix_s : float, optional
+        UNIX time of simulation time 0 [s]: the scenario's ``start_time_utc`` by default,
+        the wall time at the start for a live AIS feed (which needs a clock at speed 1).
     """
 
     def __init__(self, scenario: Scenario, *, seed: int | None = None, clock: Clock | None = None,
                  record_path: str | Path | Any | None = None, psf_backend: str = "auto",
                  record_max_bytes: int | None = None, record_chunk_bytes: int = 1 << 20,
-                 inputs: RecordedInputs | None = None, ais_evict_after_s: float = 300.0) -> None:
+                 inputs: RecordedInputs | None = None, ais_evict_after_s: float = 300.0,
+                 epoch_unix_s: float | None = None) -> None:
         self.scenario = scenario
         self.seed = int(scenario.seed if seed is None else seed)
         self.clock = clock or Clock("max", start_time_utc=scenario.start_time_utc)
         if self.clock.start_time_utc is None:
             self.clock.start_time_utc = scenario.start_time_utc
         self.scene: Scene = resolve_scene(scenario)
-        self.epoch_unix_s = scenario.start_time_utc.timestamp()
-        rng_env, rng_lidar, rng_ais, rng_nav, _ = (
-            np.random.default_rng(s) for s in np.random.SeedSequence(self.seed).spawn(5))
+        # simulation time 0 in UNIX time: the scenario's start, or for a live AIS feed the
+        # wall time now (the feed's tag-block times are real); a re-run passes the
+        # recording's epoch
+        # (set again at the end of the construction for a live feed)
+        live = scenario.ais.mode == "live" and inputs is None and epoch_unix_s is None
+        if epoch_unix_s is not None:
+            self.epoch_unix_s = float(epoch_unix_s)
+        else:
+            self.epoch_unix_s = scenario.start_time_utc.timestamp()
+        seeds = np.random.SeedSequence(self.seed).spawn(5)
+        rng_env, rng_lidar, rng_ais, rng_nav, _ = (np.random.default_rng(s) for s in seeds)
         rates = scenario.rates
         self.dt_s = 1.0 / rates.sim_hz
         self.params = own_params(scenario)
@@ -161,6 +174,7 @@ class Twin:
         self._file_i = 0
         self._fault_seen: list[str] = []
         self._wind_set: tuple[float, float] | None = None  # (speed m/s, from rad) by set_wind
+        self._weather_cache: tuple[int, Any] | None = None
         # ---- sources at the edge: weather first (the world's wind may come from it)
         self.weather, self.weather_source = self._open_weather()
         self.world = World(scenario, self.scene, self.params, dt_s=self.dt_s, rng=rng_env,
@@ -174,10 +188,13 @@ class Twin:
             velocity_std_m_s=scenario.ais.gnss_velocity_std_m_s)
         self.ais_mode = scenario.ais.mode
         self._file_lines = self._open_ais_file() if self.ais_mode == "file" else None
-        if self.ais_mode == "live":
-            raise ScenarioError("ais.mode 'live' is not run by the twin's runtime yet; "
-                                "record the feed with 'asvtwin ais record' and use mode 'file'")
-        self.ais_feed_alive = self.ais_mode in ("synthetic", "file")
+        self.live: LiveAisFeed | None = None
+        if self.ais_mode == "live" and inputs is None and self.clock.speed != 1.0:
+            # (a re-run has the lines recorded and runs at any speed)
+            raise ScenarioError(
+                f"ais.mode 'live' ({scenario.ais.url}) runs in real time: the clock must "
+                f"run at speed 1 (asvtwin run --speed 1), actually: {self.clock.speed}")
+        self.ais_feed_alive = self.ais_mode in ("synthetic", "file", "live")
         self.ais = AisInput(self.scene, epoch_unix_s=self.epoch_unix_s,
                             evict_after_s=ais_evict_after_s)
         # ---- the twin's own components
@@ -209,7 +226,12 @@ class Twin:
         periods = {"ais": 0.0, "weather": 60.0, "lidar": 1.0 / s.lidar_rate_hz,
                    "tracker": 1.0 / rates.tracker_hz, "observer": 1.0 / rates.observer_hz,
                    "controller": 1.0 / rates.controller_hz, "filter": 1.0 / rates.filter_hz,
-                   "world": 0.0, "scoring": max(self.dt_s, 0.2), "tracking_score": 0.0,
+                   "world": 0.0, "scoring": max(self.dt_s, 0.2),
+                   # tracking scored against truth once a second: successive errors of a
+                   # track 0.1 s apart are nearly the same sample (NEES χ² bounds assume
+                   # independent samples), and scoring every tracker update cost 14 % of
+                   # the tick
+                   "tracking_score": max(1.0 / rates.tracker_hz, 1.0),
                    "snapshot": 1.0 / rates.snapshot_hz,
                    "recorder": 1.0 / rates.snapshot_hz}
         for name in _COMPONENTS:
@@ -240,6 +262,23 @@ class Twin:
             land=self.scene.land, near_coast_m=max(4.0 * self.params.length, 50.0),
             gate_m=max(2.0 * self.params.length, 10.0),
             observer_settle_s=max(self.estimator.observer.gains.convergence_90_s))
+        if live:
+            # the feed's tag-block times are real: simulation time 0 is now, after the
+            # slow parts of the construction (solver, compiled kernels), and the feed is
+            # opened now
+            now = self.clock.now_utc()
+            self.epoch_unix_s = now.timestamp()
+            self.clock.start_time_utc = now
+            # the weather, and the world built on its wind, at the new epoch: the world is
+            # built again from its own seed, as a re-run of the recording builds it
+            self._weather_cache = None
+            self.world = World(scenario, self.scene, self.params, dt_s=self.dt_s,
+                               rng=np.random.default_rng(seeds[0]),
+                               weather_wind=self._wind_from_weather(0.0),
+                               pilot_period_s=1.0 / rates.controller_hz)
+            self.ais = AisInput(self.scene, epoch_unix_s=self.epoch_unix_s,
+                                evict_after_s=ais_evict_after_s)
+            self.live = LiveAisFeed(str(scenario.ais.url), self.scene)
         # ---- recorder
         self.recorder: Recorder | None = None
         if record_path is not None:
@@ -273,9 +312,15 @@ class Twin:
             return None, "none"
 
     def _weather_at(self, t_s: float) -> Any:
+        """The forecast at ``t_s``, interpolated at most every 10 s of simulation time
+        (the forecast is hourly; interpolating it for every snapshot cost 3 ms)."""
         if self.weather is None:
             return None
-        return self.weather.series.at_sim_time(t_s, epoch_unix_s=self.epoch_unix_s)
+        key = math.floor(t_s / 10.0)
+        if self._weather_cache is None or self._weather_cache[0] != key:
+            w = self.weather.series.at_sim_time(10.0 * key, epoch_unix_s=self.epoch_unix_s)
+            self._weather_cache = (key, w)
+        return self._weather_cache[1]
 
     def _wind_from_weather(self, t_s: float) -> tuple[float, float] | None:
         w = self._weather_at(t_s)
@@ -421,6 +466,10 @@ class Twin:
             lines = list(self._inputs.nmea.get(self.tick, []))
         elif self.ais_feed_alive and self.ais_mode == "synthetic":
             lines = self.transponders.step(t, truth)
+        elif self.live is not None:
+            lines = self.live.take()  # taken even while cut, so a cut feed's lines are lost
+            if not self.ais_feed_alive:
+                lines = []
         elif self.ais_feed_alive and self._file_lines is not None:
             i = self._file_i
             while i < len(self._file_lines) and self._file_lines[i][0] <= t + 1e-9:
@@ -462,7 +511,9 @@ class Twin:
         if sch.due("tracker", t):
             ok, _ = sch.call("tracker", t, self.perception.step, t, self._scan_new, self.ais.take())
             self._scan_new = None
-            sch.call("tracking_score", t, self.metrics.tracking, self.perception.tracks, truth)
+            if sch.due("tracking_score", t):
+                sch.call("tracking_score", t, self.metrics.tracking, self.perception.tracks,
+                         truth)
         # 5. observer and fault detector
         if sch.due("observer", t):
             sch.call("observer", t, self._observer_step, t, own)
@@ -704,7 +755,9 @@ class Twin:
             self._thread.join(timeout_s)
 
     def close(self) -> None:
-        """Write the summary into the recording and finish the file."""
+        """Stop a live feed, write the summary into the recording and finish the file."""
+        if self.live is not None:
+            self.live.close()
         rec = self.recorder
         if rec is not None and not rec.closed:
             if rec.active:
@@ -727,6 +780,14 @@ class Twin:
                 not any(d.startswith("recorder") for d in deg):
             deg.append(f"recorder degraded: {self.recorder.error}")
         deg.extend(self._events_early)
+        if self.live is not None:
+            lv = {k: v for k, v in self.live.counters().items() if v}
+            if lv or self.live.dropped or self.live.error:
+                deg.append(f"live AIS feed {self.live.url}: "
+                           + ", ".join([f"{k} {v}" for k, v in sorted(lv.items())]
+                                       + ([f"{self.live.dropped} lines dropped (buffer full)"]
+                                          if self.live.dropped else [])
+                                       + ([self.live.error] if self.live.error else [])))
         errs = self.ais.errors()
         if sum(errs.values()):
             deg.append(f"ais input: {sum(errs.values())} malformed or rejected NMEA lines/"
@@ -761,6 +822,7 @@ class Twin:
         if rec.scenario is None:
             raise SourceError(f"{path}: the recording holds no scenario")
         scenario = Scenario.model_validate_json(orjson.dumps(rec.scenario))
+        kwargs.setdefault("epoch_unix_s", rec.metadata["epoch_unix_s"])
         return cls(scenario, seed=rec.seed, inputs=RecordedInputs.read(rec), **kwargs)
 
 

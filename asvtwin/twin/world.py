@@ -4,7 +4,8 @@ The own ship (:class:`~asvtwin.vessel.VesselSimulator`), every target in one
 :class:`~asvtwin.vessel.BatchSimulator` (each hull CyberShip II Froude-scaled to its length),
 and the environment (current, wind, waves) acting on the own ship. The targets are steered
 by their behaviours (hold course and speed, follow waypoints, a simple COLREG give-way or
-stand-on rule), computed for all targets at once. The twin's runtime reads the world only
+stand-on rule), computed for all targets at once; an ``ais_replay`` target is put where
+its AIS log says at every step (:mod:`asvtwin.twin.ais_track`). The twin's runtime reads the world only
 through sensors (AIS lines from :mod:`asvtwin.twin.transponders`, LiDAR scans) and to score
 a run (distances, tracking error): ground truth never decides.
 
@@ -30,7 +31,9 @@ from asvtwin.environment import (
 )
 from asvtwin.errors import ScenarioError
 from asvtwin.geo import Scene
-from asvtwin.scenarios import Scenario, TargetSpec
+from asvtwin.scenarios import AisReplay, ConstantVelocity, Scenario, TargetSpec
+from asvtwin.sources.ais import ReportBatch
+from asvtwin.twin.ais_track import AisTrack, read_ais_log
 from asvtwin.twin.pilots import TargetPilots
 from asvtwin.units import KNOT_M_S
 from asvtwin.vessel import (
@@ -158,21 +161,31 @@ class World:
         self.pilot_period_s = float(pilot_period_s)
         self._pilot_next = 0.0
         self._tau_t = np.zeros((0, 3))
+        self._logs: dict[str, ReportBatch] = {}
+        self._replay: dict[int, AisTrack] = {}  # target index -> its AIS log track
         for spec in scenario.targets:
             self._add(spec)
         self._rebuild(self._x, np.zeros((len(self._params), 3)))
 
     # ------------------------------------------------------------------ targets
     def _add(self, spec: TargetSpec) -> None:
-        if spec.behaviour.kind == "ais_replay":
-            raise ScenarioError(f"target {spec.name!r}: behaviour 'ais_replay' is not run by "
-                                "the twin's world yet; use constant_velocity, waypoints or "
-                                "colreg (or ais.mode 'file' to feed the log to the twin)")
-        assert spec.start is not None  # the schema requires it for these behaviours
-        p = spec.start.to_ned(self.scene.frame)
-        u = spec.speed_kn * KNOT_M_S
-        x = np.array([p[0], p[1], math.radians(spec.heading_deg), u, 0.0, 0.0])
+        b = spec.behaviour
         params = target_params(spec.length_m)
+        if isinstance(b, AisReplay):
+            # kinematic: its state comes from the log at every step (see ais_track); the
+            # pilot entry only keeps the batch's rows aligned
+            if b.file not in self._logs:
+                self._logs[b.file] = read_ais_log(b.file, self.scene)
+            track = AisTrack(self._logs[b.file], b.mmsi, source=f"target {spec.name!r} file "
+                             f"{b.file}")
+            self._replay[len(self._params)] = track
+            x = track.state_at(self.t_s)
+            spec = spec.model_copy(update={"behaviour": ConstantVelocity()})
+        else:
+            assert spec.start is not None  # the schema requires it for these behaviours
+            p = spec.start.to_ned(self.scene.frame)
+            u = spec.speed_kn * KNOT_M_S
+            x = np.array([p[0], p[1], math.radians(spec.heading_deg), u, 0.0, 0.0])
         self._params.append(params)
         self._x = np.vstack([self._x, x])
         self.table.append(spec)
@@ -236,5 +249,10 @@ class World:
                 self._tau_t = self.pilots.tau(self.t_s, self.targets.state, x_own)
                 self._pilot_next = self.t_s + self.pilot_period_s
             self.targets.step(self._tau_t)
+            if self._replay:  # replayed vessels are where their log puts them
+                x = self.targets.state
+                for i, track in self._replay.items():
+                    x[i] = track.state_at(self.t_s + self.dt_s)
+                self.targets.reset(x, tau0=self.targets.thrust, t0_s=self.targets.t_s)
         self.env_state = self.env.advance(self.env_state, self.dt_s, self.rng)
         self.t_s += self.dt_s
