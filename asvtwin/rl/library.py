@@ -14,10 +14,16 @@ case for the own ship: the library's target turns away). Encounters whose target
 waypoints, and those that test the coast (``restricted_water``, the Trondheim ones), are
 left out and listed with the reason by :func:`library_encounters`.
 
-Results (:func:`evaluate_library`) are per encounter: collision (the training rule: a
-LiDAR ray shorter than the ship's length), goal reached within the library's duration,
-and the closest centre-to-centre distance to any target, in model-scale metres and at
-the library's own scale next to the library's ``min_distance_targets_m``.
+Results (:func:`evaluate_library`) are per encounter and judged by the library's own
+criteria: no contact, the goal reached within the library's duration, and the closest
+centre-to-centre distance to any target at least the library's
+``min_distance_targets_m`` (reported at the library's scale and in model-scale metres).
+Contact is a target's edge within half the own ship's length of its centre (its hull as
+a circle); the episode goes on past closer approaches. The training rule (a LiDAR ray
+shorter than the ship's whole length ends the episode, after Meyer et al. 2020) is much
+stricter than the library's distances for long targets — an 80 m cargo ship's edge one
+ship length away is 128 m centre to centre, where the library asks 100 m — so it is
+reported beside the result (``within_ship_length``), not used to end the episode.
 """
 
 from __future__ import annotations
@@ -83,6 +89,7 @@ class LibraryResult:
     setup: str
     encounter: str
     collision: bool
+    within_ship_length: bool
     goal: bool
     steps: int
     min_centre_distance_model_m: float
@@ -199,25 +206,30 @@ def evaluate_library(policy: _Policy, setup: str, *, controller: str = "",
     cfg = dataclasses.replace(env_config or EnvConfig(), setup=setup, family="moving",
                               max_steps=horizon)
     world = VecPathEnv(n, cfg, seed=0, auto_reset=False)
+    world.collision_m = 0.5 * world.params.length  # contact, not the training rule
     for i, e in enumerate(encs):
         world.load_scenario(i, e.scenario)
     obs = world._observe()
     limit = np.array([e.max_steps for e in encs])
     live = np.ones(n, dtype=bool)
-    closest = np.full(n, np.inf)
     out: list[LibraryResult | None] = [None] * n
 
-    def centre_gap() -> _F8:
+    def gaps() -> tuple[_F8, _F8]:
+        """Closest centre distance and closest edge distance to any target [m]."""
         c = world.circles[:, N_STATIC:]
         d = np.hypot(c[..., 0] - world.x[:, None, 0], c[..., 1] - world.x[:, None, 1])
-        return np.where(c[..., 2] > 0, d, np.inf).min(axis=1)
+        used = c[..., 2] > 0
+        return (np.where(used, d, np.inf).min(axis=1),
+                np.where(used, d - c[..., 2], np.inf).min(axis=1))
 
-    closest = np.minimum(closest, centre_gap())
+    closest, edge = gaps()
     while live.any():
         a = np.asarray(policy.act(obs), dtype=float).reshape(n, 2)
         a[~live] = (-1.0, 0.0)  # finished ships coast (not scored)
         obs, _, _, _, recs, _ = world.step(a)
-        closest = np.where(live, np.minimum(closest, centre_gap()), closest)
+        c_now, e_now = gaps()
+        closest = np.where(live, np.minimum(closest, c_now), closest)
+        edge = np.where(live, np.minimum(edge, e_now), edge)
         for i in range(n):
             if not live[i]:
                 continue
@@ -231,7 +243,9 @@ def evaluate_library(policy: _Policy, setup: str, *, controller: str = "",
             goal = bool(rec.goal) if rec is not None else False
             out[i] = LibraryResult(
                 controller=controller or setup, setup=setup, encounter=e.name,
-                collision=collision, goal=goal, steps=int(world.steps[i]),
+                collision=collision,
+                within_ship_length=bool(edge[i] < world.params.length), goal=goal,
+                steps=int(world.steps[i]),
                 min_centre_distance_model_m=float(closest[i]),
                 min_centre_distance_m=float(closest[i] * e.scale),
                 required_m=e.min_distance_m,
