@@ -13,7 +13,7 @@ synthetic traffic, history). Per line, in order (one method or module per stage)
    on every timed line and at the end of a stream (:meth:`AisPipeline.finish`);
 3. **duplicates** (:class:`~asvtwin.sources.ais.duplicates.DuplicateFilter`): the same payload
    again within ``dedup_window_s`` (one transmission heard by two base stations) is dropped;
-4. **decode**: one-sentence position reports (types 1, 2, 3, 18; nine lines in ten) for the
+4. **decode**: one-sentence position reports (types 1, 2, 3, 18: most lines of a feed) for the
    whole batch at once (:mod:`~asvtwin.sources.ais.positions`, checked field for field against
    pyais), everything else with pyais (types 5, 19, 24 used; others counted by type, skipped);
 5. **validation** (:class:`~asvtwin.sources.ais.validation.ReportValidator`):

@@ -1,7 +1,7 @@
 """Vectorised decoding of the common single-sentence position reports (types 1, 2, 3, 18).
 
-Nine in ten lines of a coastal AIS feed are one-sentence class A (types 1, 2, 3) or class B
-(type 18) position reports. Decoding them one object at a time with pyais costs two thirds
+Most lines of a coastal AIS feed are one-sentence class A (types 1, 2, 3) or class B
+(type 18) position reports. Decoding them one object at a time with pyais cost about half
 of the pipeline's time; this module decodes a whole batch of them at once with numpy and is
 checked field for field against pyais (``tests/sources/test_positions.py``: random payloads
 of every used type, every field value at its limits). Everything else (other types,
