@@ -20,7 +20,12 @@ snapshots) and recording on (MCAP in a temporary folder).
   ``--memory-s 0`` to skip it.
 
 The machine is shared: run it alone for numbers that mean something.
-Run: ``python benchmarks/twin.py [--extra-targets 50] [--duration 120] [--memory-s 3600]``.
+The scene: each extra target starts at least 1 km from the own ship (see
+:func:`extra_targets`); the JSON also reports the run's safety (collisions, fallbacks,
+closest approach) over the whole run, memory hour included.
+
+Run: ``python benchmarks/twin.py [--extra-targets 50] [--duration 120] [--memory-s 3600]``;
+``--quick``: 30 s measured and a 300 s memory run.
 """
 
 from __future__ import annotations
@@ -102,7 +107,11 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
     ap.add_argument("--memory-s", type=float, default=3600.0,
                     help="simulated s of the memory run after the measurement (0: skip)")
     ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--quick", action="store_true",
+                    help="a short check: 30 s measured, a 300 s memory run")
     args = ap.parse_args(argv)
+    if args.quick:
+        args.duration, args.memory_s = 30.0, 300.0
 
     from asvtwin.scenarios import default_scenario
     from asvtwin.twin import Twin
@@ -137,11 +146,22 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
         ms = {n: (sch.stats(n).total_ms - ms0[n]) / n_meas for n in names}
         tick_ms = 1e3 * wall / n_meas
         mem = None
+        mem_wall = 0.0
         if args.memory_s > 0:
+            import gc
+
+            gc.collect()
             rss0 = _rss_mb()
-            for _ in range(round(args.memory_s / twin.dt_s)):
+            t_mem = time.perf_counter()
+            n_mem = round(args.memory_s / twin.dt_s)
+            for k in range(n_mem):
                 twin.step()
+                if k and k % max(1, n_mem // 10) == 0:
+                    print(f"memory run: {k * twin.dt_s:.0f} of {args.memory_s:.0f} simulated s, "
+                          f"rss {_rss_mb() - rss0:+.1f} MB", file=sys.stderr, flush=True)
+            gc.collect()
             mem = _rss_mb() - rss0
+            mem_wall = time.perf_counter() - t_mem
         twin.close()
         summary = twin.summary()
     sim_s = n_meas * twin.dt_s
@@ -159,10 +179,18 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
         "recording_mb_per_h": round((bytes1 - bytes0) / 2**20 * 3600.0 / sim_s, 2),
         "memory_growth_mb": None if mem is None else round(mem, 2),
         "memory_run_s": args.memory_s,
+        "memory_run_realtime_factor": round(args.memory_s / mem_wall, 2) if mem_wall else None,
         "build_s": round(build_s, 2),
+        # safety over the whole run (warm-up, measurement and the memory hour)
+        "run_sim_s": round(summary.duration_s, 1),
         "filter_calls": summary.filter_calls,
         "fallbacks": summary.fallbacks,
+        "fallback_rate": round(sum(summary.fallbacks.values()) / max(summary.filter_calls, 1),
+                               4),
         "collisions": summary.collisions,
+        "groundings": summary.groundings,
+        "min_distance_targets_m": round(min(summary.min_distance_targets_m.values(),
+                                            default=float("nan")), 1),
         "measured_sim_s": sim_s,
         "load_average_1min": round(float(__import__("os").getloadavg()[0]), 2),
     }

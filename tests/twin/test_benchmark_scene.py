@@ -1,0 +1,58 @@
+"""The benchmark scene (``benchmarks/twin.py``): 50 extra targets placed so that the own
+ship could keep clear of every one (none on top of it: an earlier version put one 42 m off,
+hulls overlapping, and the run counted that as the twin's collision), and a short run of it
+through the whole twin."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from asvtwin.scenarios import default_scenario, resolve_scene
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def bench():
+    spec = importlib.util.spec_from_file_location("bench_twin", ROOT / "benchmarks" / "twin.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_extra_targets_start_clear_of_the_own_ship_each_other_and_land(bench):
+    base = default_scenario()
+    scene = resolve_scene(base)
+    extra = bench.extra_targets(base, 50, 7)
+    assert len(extra) == 50
+    p0 = base.own_ship.start.to_ned(scene.frame)
+    p = np.array([t.start.to_ned(scene.frame) for t in extra])
+    d_own = np.hypot(*(p - p0).T)
+    assert d_own.min() >= 1000.0 and d_own.max() <= 3000.0 * np.sqrt(2)
+    gaps = np.hypot(p[:, None, 0] - p[None, :, 0], p[:, None, 1] - p[None, :, 1])
+    assert gaps[np.triu_indices(50, 1)].min() >= 200.0
+    assert scene.land.signed_distance(p).min() >= 300.0
+    # the same seed gives the same scene
+    again = bench.extra_targets(base, 50, 7)
+    assert [t.model_dump() for t in again] == [t.model_dump() for t in extra]
+
+
+def test_a_short_run_of_the_benchmark_scene_is_safe(bench):
+    from asvtwin.twin import Twin
+
+    base = default_scenario()
+    targets = list(base.targets) + bench.extra_targets(base, 50, 7)
+    sc = base.model_copy(update={"targets": targets, "duration_s": 30.0})
+    sc = type(base).model_validate(sc.model_dump(mode="json"))
+    twin = Twin(sc)
+    s = twin.run(30.0)
+    assert s.collisions == 0 and s.groundings == 0, s.text()
+    d_safe = twin.filter.psf.d_safe_m
+    assert min(s.min_distance_targets_m.values()) > 1000.0 - 30.0 * 2 * 5.0
+    assert s.filter_calls == 60
+    assert sum(s.fallbacks.values()) <= 2, s.text()  # was 59 of 60 with a target on board
+    assert d_safe > 0
