@@ -250,3 +250,56 @@ def test_replay_has_a_timeline_that_seeks(replay):
     assert srv.feed.playback_time_s() == pytest.approx(2.5, abs=1e-6)
     save(page.locator("#timeline").screenshot(), "viewer-timeline.png")
     assert not foreign
+
+
+def test_whatif_draws_ghosts_and_the_answer(live):
+    """A small what-if from the viewer's control (2 alternatives x 3 futures, 30 s): each
+    future is drawn on the chart as a ghost in its alternative's colour, starting at the own
+    ship, and the panel shows the probabilities and the recommendation in words."""
+    _srv, feed, page, foreign = live
+    if not feed.paused:
+        page.click("#btn-pause", **F)
+        page.wait_for_function("asvtwinViewer.latest.clock.paused", timeout=WAIT_MS)
+    page.wait_for_timeout(500)
+    before = save(page.locator("#chart-pane").screenshot(), "viewer-whatif-before.png")
+    page.click("#btn-whatif", **F)
+    assert page.locator("#whatif-panel").is_visible()
+    for value in ("route+filter_off", "keep_course"):
+        choose(page, f".wi-alt[value='{value}']", "off")
+    choose(page, "#wi-rollouts", "3")
+    choose(page, "#wi-horizon", "30")
+    page.click("#btn-whatif-ask", **F)
+    page.wait_for_function("asvtwinViewer.whatif.asked >= 1", timeout=180_000)
+    st = page.evaluate("asvtwinViewer.whatif")
+    assert "error" not in st, st.get("error")
+    ans = st["answer"]
+    assert [a["label"] for a in ans["alternatives"]] == ["route", "starboard:30"]
+    assert ans["rollouts"] == 3 and ans["horizon_s"] == 30
+    assert len(ans["ghosts"]) == 6
+    own = np.array(page.evaluate("asvtwinViewer.latest.own.state"))[:2]
+    for g in ans["ghosts"]:
+        pos = np.array(g["positions_m"])
+        assert pos.shape[1] == 2 and len(pos) == len(ans["ghost_t_s"])
+        assert np.hypot(*(pos[0] - own)) < 5.0  # each future starts at the own ship
+    page.wait_for_function("asvtwinViewer.chart.ghosts == 6", timeout=WAIT_MS)
+    q = ("asvtwinViewer.map.querySourceFeatures('dyn', {filter: ['has', 'alt']})"
+         ".map(f => [f.properties.alt, f.properties.color])")
+    # in MapLibre's tiles once its worker re-tiled the source (a line cut at a tile edge
+    # counts once per tile)
+    page.wait_for_function(f"{q}.length >= 6", timeout=WAIT_MS)
+    drawn = page.evaluate(q)
+    # one colour per alternative, red (224, 20, 30) where that future collided
+    colours = {a: {c for alt, c in drawn if alt == a} for a in ("route", "starboard:30")}
+    collided = {g["alternative"] for g in ans["ghosts"] if g["collision"]}
+    assert colours["route"] and colours["starboard:30"]
+    if not collided:
+        assert len(colours["route"]) == 1 and colours["route"] != colours["starboard:30"]
+    panel = page.locator("#whatif-panel").inner_text()
+    assert "route" in panel and "starboard:30" in panel
+    assert ans["recommendation"]["label"] in panel and "collisions" in panel
+    page.wait_for_timeout(800)
+    after = save(page.locator("#chart-pane").screenshot(), "viewer-whatif.png")
+    assert (np.abs(after - before).max(axis=2) > 40).sum() > 200  # ghosts and panel drawn
+    page.click("#btn-whatif-close", **F)
+    page.wait_for_function("asvtwinViewer.chart.ghosts == 0", timeout=WAIT_MS)
+    assert not foreign

@@ -1,11 +1,25 @@
 // The ECDIS-style chart: MapLibre GL JS with a style made only of inline GeoJSON (no tile,
 // glyph or sprite server). Everything the snapshot holds in scene NED metres is converted
 // to lon/lat with the scene's exact LocalFrame port (geo.js).
+//
+// Drawing cost. With software WebGL (SwiftShader) every draw call fans out to the
+// rasteriser's threads, so a frame costs about (draw calls) x (a thread round trip), and
+// MapLibre issues one draw per layer per tile. The chart therefore keeps the draw calls
+// few: every moving part is one GeoJSON source updated by one setData per snapshot, drawn
+// by five layers whose colour, width and dashes come from each feature's properties
+// (one fill, one line, one circle, two symbol layers); and each GeoJSON source is tiled
+// at most ZOOM_DEPTH zoom levels below the view (overzoomed tiles: 1-4 cover the chart
+// instead of 6-12), re-made when the user zooms past that. At ZOOM_DEPTH = 3 a tile
+// coordinate (1/8192 of a tile) is 1/2 pixel on screen. Software rasterising also pays per
+// pixel shaded, so the water is no layer but the CSS colour behind a transparent canvas.
 import * as maplibregl from 'maplibre-gl';
 import { addSymbols } from './symbols.js';
 import { deg } from './geo.js';
 
 const VECTOR_S = 360;          // COG/SOG vectors: 6 minutes ahead
+const ZOOM_DEPTH = 3;          // sources tiled at most this many zoom levels below the view
+// what-if ghosts: one colour per alternative (in the order of the answer)
+export const GHOST_COLOURS = ['#1f5fd0', '#d4691e', '#8e3bb5', '#0f8f8f', '#b8860b', '#c2185b', '#5d4037', '#455a64'];
 const EMPTY = { type: 'FeatureCollection', features: [] };
 const PALETTES = {
   day: { water: '#d4eaee', land: '#d8c89a', coast: '#6b5a2e', own: '#0b0b0b', route: '#d4691e' },
@@ -80,75 +94,89 @@ export class Chart {
   constructor(el, scene, frame, { onClick } = {}) {
     this.frame = frame;
     this.scene = scene;
-    this.stats = { updates: 0, targets: 0, cones: 0, planStages: 0, criticalStages: 0, lidarPoints: 0, ellipses: 0, loaded: false, idle: 0 };
+    this.stats = { updates: 0, targets: 0, cones: 0, planStages: 0, criticalStages: 0, lidarPoints: 0, ellipses: 0, ghosts: 0, loaded: false, idle: 0, renders: 0, sourceMaxzoom: null };
     this.orientation = 'north';
     this.follow = true;
     this.palette = 'day';
     this.draft = [];
+    this.ghostFeats = [];
+    this.last = null;
     const o = scene.origin;
     this.map = new maplibregl.Map({
       container: el,
-      style: { version: 8, sources: {}, layers: [{ id: 'water', type: 'background', paint: { 'background-color': PALETTES.day.water } }] },
+      // no background layer: the water is the container's CSS colour showing through the
+      // transparent canvas (a full-screen quad less for the software rasteriser per frame)
+      style: { version: 8, sources: {}, layers: [] },
       center: [o.lon_deg, o.lat_deg], zoom: 13, attributionControl: false, fadeDuration: 0,
-      maxPitch: 0, renderWorldCopies: false,
+      maxPitch: 0, renderWorldCopies: false, pixelRatio: 1,
+      canvasContextAttributes: { antialias: false, preserveDrawingBuffer: false },
     });
     this.map.addControl(new maplibregl.ScaleControl({ unit: 'nautical' }), 'top-right');
     this.ready = new Promise((resolve) => this.map.on('load', () => { this._setup(); resolve(); }));
     this.map.on('idle', () => { this.stats.idle += 1; });
+    this.map.on('render', () => { this.stats.renders += 1; });
+    this.map.on('zoomend', () => this._retile());
     this.map.on('click', (e) => onClick && onClick(frame.toNed(e.lngLat.lng, e.lngLat.lat)));
   }
 
   _ll(points) { return points.map((p) => this.frame.toLonLat(p[0], p[1])); }
 
-  _setup() {
-    const m = this.map, P = PALETTES.day;
-    addSymbols(m);
-    const src = (id, data = EMPTY) => m.addSource(id, { type: 'geojson', data, tolerance: 0.2 });
+  _wantMaxzoom() { return Math.max(0, Math.floor(this.map.getZoom()) - ZOOM_DEPTH); }
+
+  // The layers, bottom to top. Everything that moves is in source `dyn`: its features carry
+  // their own style (`fill`, `color`, `width`, `dash`, `r`, `stroke`), so one layer per
+  // geometry kind draws them all.
+  _layers() {
+    const P = PALETTES[this.palette] || PALETTES.day;
+    const dash = ['match', ['get', 'dash'], 'long', ['literal', [4, 2]], 'cog', ['literal', [4, 3]],
+      'short', ['literal', [2, 2]], 'cpa', ['literal', [3, 2]], ['literal', [1, 0]]];
+    return [
+      { id: 'land', type: 'fill', source: 'land', paint: { 'fill-color': P.land } },
+      { id: 'coast', type: 'line', source: 'land', paint: { 'line-color': P.coast, 'line-width': 1 } },
+      { id: 'dyn-fill', type: 'fill', source: 'dyn', filter: ['==', ['get', 'k'], 'f'], paint: { 'fill-color': ['get', 'fill'] } },
+      { id: 'dyn-line', type: 'line', source: 'dyn', filter: ['==', ['get', 'k'], 'l'], paint: { 'line-color': ['get', 'color'], 'line-width': ['get', 'width'], 'line-dasharray': dash } },
+      { id: 'dyn-circle', type: 'circle', source: 'dyn', filter: ['==', ['get', 'k'], 'c'], paint: { 'circle-radius': ['get', 'r'], 'circle-color': ['get', 'fill'], 'circle-stroke-color': ['get', 'stroke'], 'circle-stroke-width': ['get', 'sw'] } },
+      { id: 'targets', type: 'symbol', source: 'dyn', filter: ['==', ['get', 'k'], 's'], layout: { 'icon-image': ['get', 'icon'], 'icon-rotate': ['get', 'rot'], 'icon-rotation-alignment': 'map', 'icon-allow-overlap': true, 'icon-ignore-placement': true } },
+      { id: 'labels', type: 'symbol', source: 'dyn', filter: ['==', ['get', 'k'], 's'], minzoom: 11.5, layout: { 'icon-image': ['concat', 'name:', ['get', 'name']], 'icon-anchor': 'left', 'icon-offset': [12, 0], 'icon-allow-overlap': true, 'icon-ignore-placement': true } },
+      { id: 'draft', type: 'line', source: 'draft', paint: { 'line-color': '#d4691e', 'line-width': 3 } },
+    ];
+  }
+
+  // (Re)make the GeoJSON sources tiled at `maxzoom` and their layers.
+  _build(maxzoom) {
+    const m = this.map;
+    for (const l of this._layers()) if (m.getLayer(l.id)) m.removeLayer(l.id);
+    for (const id of ['land', 'dyn', 'draft']) if (m.getSource(id)) m.removeSource(id);
+    const src = (id, data) => m.addSource(id, { type: 'geojson', data, tolerance: 0.2, maxzoom, buffer: 64 });
     src('land', this.scene.land);
-    // every moving part lives in one GeoJSON source (one setData, one re-tiling per update);
-    // each feature's `kind` selects its layer
-    src('dyn');
-    src('draft');
-    const add = (layer) => {
-      if (layer.source === 'dyn' || !['land', 'draft'].includes(layer.source)) {
-        const kind = ['==', ['get', 'kind'], layer.source];
-        layer.filter = layer.filter ? ['all', kind, layer.filter] : kind;
-        layer.source = 'dyn';
-      }
-      m.addLayer(layer);
-    };
-    add({ id: 'land', type: 'fill', source: 'land', paint: { 'fill-color': P.land } });
-    add({ id: 'coast', type: 'line', source: 'land', paint: { 'line-color': P.coast, 'line-width': 1 } });
-    add({ id: 'route', type: 'line', source: 'route', filter: ['==', ['geometry-type'], 'LineString'], paint: { 'line-color': P.route, 'line-width': 2, 'line-dasharray': [4, 2] } });
-    add({ id: 'route-wp', type: 'circle', source: 'route', filter: ['==', ['geometry-type'], 'Point'], paint: { 'circle-radius': 4, 'circle-color': 'rgba(0,0,0,0)', 'circle-stroke-color': P.route, 'circle-stroke-width': 2 } });
-    add({ id: 'track', type: 'line', source: 'track', paint: { 'line-color': '#555', 'line-width': 1.5 } });
-    add({ id: 'cones', type: 'fill', source: 'cones', paint: { 'fill-color': 'rgba(40,170,60,0.22)', 'fill-outline-color': 'rgba(20,120,40,0.7)' } });
-    add({ id: 'preds', type: 'line', source: 'preds', paint: { 'line-color': '#1f8a35', 'line-width': 1 } });
-    add({ id: 'ellipses', type: 'line', source: 'ellipses', paint: { 'line-color': '#008b9a', 'line-width': 1.5 } });
-    add({ id: 'lidar', type: 'circle', source: 'lidar', paint: { 'circle-radius': 1.6, 'circle-color': ['case', ['get', 'coast'], '#6a6a6a', '#c01cc0'] } });
-    add({ id: 'plan', type: 'line', source: 'plan', layout: { 'line-cap': 'round' }, paint: { 'line-color': ['case', ['get', 'critical'], '#e0141e', '#1a9a2a'], 'line-width': 5 } });
-    add({ id: 'arrows', type: 'line', source: 'arrows', paint: { 'line-color': ['get', 'color'], 'line-width': 2, 'line-dasharray': ['case', ['get', 'ghost'], ['literal', [2, 2]], ['literal', [1, 0]]] } });
-    add({ id: 'cpa', type: 'line', source: 'cpa', paint: { 'line-color': '#e0141e', 'line-width': 1.5, 'line-dasharray': [3, 2] } });
-    add({ id: 'vectors', type: 'line', source: 'vectors', paint: { 'line-color': ['case', ['get', 'danger'], '#e0141e', '#1c1c1c'], 'line-width': 1.2, 'line-dasharray': [4, 3] } });
-    add({ id: 'targets', type: 'symbol', source: 'targets', layout: { 'icon-image': ['get', 'icon'], 'icon-rotate': ['get', 'rot'], 'icon-rotation-alignment': 'map', 'icon-allow-overlap': true, 'icon-ignore-placement': true } });
-    add({ id: 'labels', type: 'symbol', source: 'targets', minzoom: 11.5, layout: { 'icon-image': ['concat', 'name:', ['get', 'name']], 'icon-anchor': 'left', 'icon-offset': [12, 0], 'icon-allow-overlap': true, 'icon-ignore-placement': true } });
-    add({ id: 'own-hull', type: 'fill', source: 'own', filter: ['==', ['get', 'part'], 'hull'], paint: { 'fill-color': 'rgba(255,255,255,0.4)', 'fill-outline-color': P.own } });
-    add({ id: 'own-lines', type: 'line', source: 'own', filter: ['==', ['geometry-type'], 'LineString'], paint: { 'line-color': P.own, 'line-width': 2, 'line-dasharray': ['case', ['==', ['get', 'part'], 'cog'], ['literal', [4, 3]], ['literal', [1, 0]]] } });
-    add({ id: 'own-mark', type: 'circle', source: 'own', filter: ['==', ['geometry-type'], 'Point'], paint: { 'circle-radius': 7, 'circle-color': 'rgba(0,0,0,0)', 'circle-stroke-color': P.own, 'circle-stroke-width': 2 } });
-    add({ id: 'draft', type: 'line', source: 'draft', paint: { 'line-color': '#d4691e', 'line-width': 3 } });
+    src('dyn', this._dynData || EMPTY);
+    src('draft', this.draft.length > 1 ? fc([line(this._ll(this.draft))]) : EMPTY);
+    for (const l of this._layers()) m.addLayer(l);
+    this.stats.sourceMaxzoom = maxzoom;
+  }
+
+  _retile() {
+    if (!this.stats.loaded) return;
+    const want = this._wantMaxzoom();
+    if (want !== this.stats.sourceMaxzoom) this._build(want);
+  }
+
+  _setup() {
+    this.map.getContainer().style.background = PALETTES[this.palette].water;
+    addSymbols(this.map);
+    this._build(this._wantMaxzoom());
     this.stats.loaded = true;
     document.getElementById('attribution').textContent = `Land: ${this.scene.attribution} (${this.scene.licence.split(' ').slice(0, 4).join(' ')}…)`;
   }
 
   setPalette(name) {
-    const P = PALETTES[name] || PALETTES.day;
-    this.palette = name;
-    const m = this.map;
+    this.palette = PALETTES[name] ? name : 'day';
+    const P = PALETTES[this.palette], m = this.map;
     if (!this.stats.loaded) return;
-    m.setPaintProperty('water', 'background-color', P.water);
+    m.getContainer().style.background = P.water;
     m.setPaintProperty('land', 'fill-color', P.land);
     m.setPaintProperty('coast', 'line-color', P.coast);
-    for (const id of ['own-lines', 'own-mark']) m.setPaintProperty(id, id === 'own-mark' ? 'circle-stroke-color' : 'line-color', P.own);
+    if (this.last) this.update(...this.last);
   }
 
   setDraft(points) {
@@ -157,94 +185,115 @@ export class Chart {
     this.map.getSource('draft').setData(fc(points.length > 1 ? [line(this._ll(points))] : []));
   }
 
+  // What-if ghosts: each future of each alternative as a faint line in the alternative's
+  // colour (red where that future collided); drawn from the next update on.
+  setGhosts(answer) {
+    const feats = [];
+    const labels = (answer?.alternatives || []).map((a) => a.label);
+    for (const g of answer?.ghosts || []) {
+      const k = Math.max(0, labels.indexOf(g.alternative));
+      const pos = g.positions_m || [];
+      if (pos.length > 1) {
+        feats.push(line(this._ll(pos), { k: 'l', color: g.collision ? 'rgba(224,20,30,0.55)' : hexA(GHOST_COLOURS[k % GHOST_COLOURS.length], 0.45), width: 1.5, dash: 'solid', alt: g.alternative }));
+      }
+    }
+    this.ghostFeats = feats;
+    this.stats.ghosts = feats.length;
+    this.stats.ghostAlternatives = labels.length;
+    if (this.last) this.update(...this.last);
+  }
+
   // One snapshot (plus the targets main.js derived from it) onto the chart.
   update(s, targets) {
+    this.last = [s, targets];
     if (!this.stats.loaded) return;
     const m = this.map, own = s.own, p = [own.state[0], own.state[1]], psi = own.state[2];
     const L = own.length_m || 10, B = own.beam_m || 3;
     const sog = own.sog_m_s || 0, cog = own.cog_rad ?? psi;
+    const P = PALETTES[this.palette] || PALETTES.day;
+    // features in drawing order within each layer: fills, then lines, then points
     const all = [];
-    const set = (kind, feats) => { for (const f of feats) { f.properties.kind = kind; all.push(f); } };
-
-    // own ship: hull to scale, heading line, COG/SOG vector, position mark
-    const headLen = Math.max(3 * L, 200);
-    set('own', [
-      poly(this._ll(placed(hullOutline(L, B), p, psi)), { part: 'hull' }),
-      line(this._ll([p, [p[0] + headLen * Math.cos(psi), p[1] + headLen * Math.sin(psi)]]), { part: 'heading' }),
-      line(this._ll([p, [p[0] + sog * VECTOR_S * Math.cos(cog), p[1] + sog * VECTOR_S * Math.sin(cog)]]), { part: 'cog' }),
-      feat({ type: 'Point', coordinates: this.frame.toLonLat(p[0], p[1]) }, { part: 'mark' }),
-    ]);
-    const route = own.route || [];
-    set('route', [
-      ...(route.length ? [line(this._ll([p, ...route.slice(own.waypoint_index || 0)]))] : []),
-      ...route.map((w, i) => feat({ type: 'Point', coordinates: this.frame.toLonLat(w[0], w[1]) }, { i })),
-    ]);
-    set('track', (own.past_track || []).length > 1 ? [line(this._ll([...own.past_track, p]))] : []);
-
-    // LiDAR returns and the ellipses fitted to them
-    const pts = s.lidar.points || [], coast = s.lidar.coast || [];
-    const cpts = [], vpts = [];
-    pts.forEach((q, i) => (coast[i] ? cpts : vpts).push(this.frame.toLonLat(q[0], q[1])));
-    set('lidar', [feat({ type: 'MultiPoint', coordinates: cpts }, { coast: true }), feat({ type: 'MultiPoint', coordinates: vpts }, { coast: false })]);
-    const el = s.ellipses, ellFeats = [];
-    (el.centre || []).forEach((c, i) => { if (el.ok[i]) ellFeats.push(line(this._ll(ellipseRing(c, el.semi_axes_m[i], el.angle_rad[i])))); });
-    set('ellipses', ellFeats);
+    const ln = (pts, color, width, dash = 'solid', extra = {}) => all.push(line(this._ll(pts), { k: 'l', color, width, dash, ...extra }));
+    const pt = (q, r, fill, stroke, sw) => all.push(feat({ type: 'Point', coordinates: this.frame.toLonLat(q[0], q[1]) }, { k: 'c', r, fill, stroke, sw }));
+    const mpt = (qs, r, fill) => all.push(feat({ type: 'MultiPoint', coordinates: qs }, { k: 'c', r, fill, stroke: 'rgba(0,0,0,0)', sw: 0 }));
 
     // tracks: prediction cones ("green broadening path") and centrelines
-    const tr = s.tracks, cones = [], preds = [];
+    const tr = s.tracks;
+    let nCones = 0;
     (tr.ids || []).forEach((id, i) => {
-      const means = tr.pred_mean[i] || [], radii = tr.pred_radius_m[i] || [];
-      const ring = cone(means, radii);
-      if (ring) cones.push(poly(this._ll(ring), { id }));
-      if (means.length > 1) preds.push(line(this._ll(means), { id }));
+      const ring = cone(tr.pred_mean[i] || [], tr.pred_radius_m[i] || []);
+      if (ring) { all.push(poly(this._ll(ring), { k: 'f', fill: 'rgba(40,170,60,0.22)' })); ln(ring, 'rgba(20,120,40,0.7)', 1); nCones += 1; }
     });
-    set('cones', cones); set('preds', preds);
-
+    // own ship: hull to scale (fill + outline)
+    const hull = placed(hullOutline(L, B), p, psi);
+    all.push(poly(this._ll(hull), { k: 'f', fill: 'rgba(255,255,255,0.4)' }));
+    ln(hull, P.own, 1);
+    // what-if ghosts under the live picture
+    for (const g of this.ghostFeats) all.push(g);
+    (tr.ids || []).forEach((id, i) => { const mm = tr.pred_mean[i] || []; if (mm.length > 1) ln(mm, '#1f8a35', 1); });
+    // route and past track
+    const route = own.route || [];
+    if (route.length) ln([p, ...route.slice(own.waypoint_index || 0)], P.route, 2, 'long');
+    if ((own.past_track || []).length > 1) ln([...own.past_track, p], '#555555', 1.5);
+    // fitted ellipses
+    const el = s.ellipses;
+    let nEll = 0;
+    (el.centre || []).forEach((c, i) => { if (el.ok[i]) { ln(ellipseRing(c, el.semi_axes_m[i], el.angle_rad[i]), '#008b9a', 1.5); nEll += 1; } });
     // the safety filter's plan: green, critical stages red
     const f = s.filter, plan = f.plan || [], crit = new Set(f.critical_stages || []);
-    const planFeats = [];
-    for (let i = 0; i + 1 < plan.length; i++) {
-      const critical = crit.has(i + 1) || crit.has(i);
-      planFeats.push(line(this._ll([plan[i], plan[i + 1]]), { critical, stage: i }));
+    let nPlan = 0, nCrit = 0;
+    if (f.enabled) {
+      for (let i = 0; i + 1 < plan.length; i++) {
+        const critical = crit.has(i + 1) || crit.has(i);
+        ln([plan[i], plan[i + 1]], critical ? '#e0141e' : '#1a9a2a', 5, 'solid', { critical });
+        nPlan += 1; nCrit += critical ? 1 : 0;
+      }
     }
-    set('plan', f.enabled ? planFeats : []);
-    this.stats.planStages = f.enabled ? planFeats.length : 0;
-    this.stats.criticalStages = f.enabled ? planFeats.filter((x) => x.properties.critical).length : 0;
-
     // arrows: the learner's proposal u_L (ghost) and the input let through u_0, the
     // disturbance estimate d-hat (body frame -> NED) and the wind (pointing downwind)
-    const arrows = [];
     const uL = f.u_L || [0, 0, 0], u0 = f.u_0 || [0, 0, 0];
     const fmax = Math.max(Math.hypot(uL[0], uL[1]), Math.hypot(u0[0], u0[1]), 1e-9);
     const bodyDir = (v) => psi + Math.atan2(v[1], v[0]);
-    if (Math.hypot(uL[0], uL[1]) > 0) arrows.push(line(this._ll(arrow(p, bodyDir(uL), 4 * L * Math.hypot(uL[0], uL[1]) / fmax)), { color: '#888888', ghost: true }));
-    if (Math.hypot(u0[0], u0[1]) > 0) arrows.push(line(this._ll(arrow(p, bodyDir(u0), 4 * L * Math.hypot(u0[0], u0[1]) / fmax)), { color: '#1a9a2a', ghost: false }));
+    if (Math.hypot(uL[0], uL[1]) > 0) ln(arrow(p, bodyDir(uL), 4 * L * Math.hypot(uL[0], uL[1]) / fmax), '#888888', 2, 'short');
+    if (Math.hypot(u0[0], u0[1]) > 0) ln(arrow(p, bodyDir(u0), 4 * L * Math.hypot(u0[0], u0[1]) / fmax), '#1a9a2a', 2);
     const dh = s.observer.d_hat || [0, 0, 0];
-    if (Math.hypot(dh[0], dh[1]) > 0) arrows.push(line(this._ll(arrow(p, bodyDir(dh), 2.5 * L)), { color: '#1f5fd0', ghost: false }));
+    if (Math.hypot(dh[0], dh[1]) > 0) ln(arrow(p, bodyDir(dh), 2.5 * L), '#1f5fd0', 2);
     const w = s.weather;
     if (w.wind_speed_m_s > 0 && w.wind_from_rad != null) {
       const side = [p[0] + 2 * L * Math.cos(psi + Math.PI / 2), p[1] + 2 * L * Math.sin(psi + Math.PI / 2)];
-      arrows.push(line(this._ll(arrow(side, w.wind_from_rad + Math.PI, 2.5 * L)), { color: '#444444', ghost: false }));
+      ln(arrow(side, w.wind_from_rad + Math.PI, 2.5 * L), '#444444', 2);
     }
-    set('arrows', arrows);
-
-    // targets: symbols along COG, vectors, names, CPA lines of dangerous ones
-    const tf = [], vf = [], cf = [];
+    // targets: vectors, CPA lines of dangerous ones, symbols along heading, names
     const v0 = [sog * Math.cos(cog), sog * Math.sin(cog)];
+    let nT = 0;
     for (const t of targets) {
-      const kind = t.source === 'lidar' ? 'radar' : 'ais';
-      const icon = t.lost ? `${kind}-lost` : t.danger ? `${kind}-danger` : kind;
-      const rot = deg(t.heading ?? t.cogRad ?? 0);
-      tf.push(feat({ type: 'Point', coordinates: this.frame.toLonLat(t.pos[0], t.pos[1]) }, { icon, rot, name: t.label }));
-      if (t.vel && !t.lost) vf.push(line(this._ll([t.pos, [t.pos[0] + t.vel[0] * VECTOR_S, t.pos[1] + t.vel[1] * VECTOR_S]]), { danger: t.danger }));
+      if (t.vel && !t.lost) ln([t.pos, [t.pos[0] + t.vel[0] * VECTOR_S, t.pos[1] + t.vel[1] * VECTOR_S]], t.danger ? '#e0141e' : '#1c1c1c', 1.2, 'long');
       if (t.danger && t.tcpa != null) {
         const a = [p[0] + v0[0] * t.tcpa, p[1] + v0[1] * t.tcpa];
         const b = [t.pos[0] + t.vel[0] * t.tcpa, t.pos[1] + t.vel[1] * t.tcpa];
-        cf.push(line(this._ll([p, a, b, t.pos])));
+        ln([p, a, b, t.pos], '#e0141e', 1.5, 'cpa');
       }
     }
-    set('targets', tf); set('vectors', vf); set('cpa', cf);
-    m.getSource('dyn').setData(fc(all));
+    // own ship: heading line, COG/SOG vector, position mark
+    const headLen = Math.max(3 * L, 200);
+    ln([p, [p[0] + headLen * Math.cos(psi), p[1] + headLen * Math.sin(psi)]], P.own, 2);
+    ln([p, [p[0] + sog * VECTOR_S * Math.cos(cog), p[1] + sog * VECTOR_S * Math.sin(cog)]], P.own, 2, 'cog');
+    pt(p, 7, 'rgba(0,0,0,0)', P.own, 2);
+    route.forEach((wp) => pt(wp, 4, 'rgba(0,0,0,0)', P.route, 2));
+    // LiDAR returns: coast grey, vessels magenta
+    const pts = s.lidar.points || [], coast = s.lidar.coast || [];
+    const cpts = [], vpts = [];
+    pts.forEach((q, i) => (coast[i] ? cpts : vpts).push(this.frame.toLonLat(q[0], q[1])));
+    if (cpts.length) mpt(cpts, 1.6, '#6a6a6a');
+    if (vpts.length) mpt(vpts, 1.6, '#c01cc0');
+    for (const t of targets) {
+      const kind = t.source === 'lidar' ? 'radar' : 'ais';
+      const icon = t.lost ? `${kind}-lost` : t.danger ? `${kind}-danger` : kind;
+      all.push(feat({ type: 'Point', coordinates: this.frame.toLonLat(t.pos[0], t.pos[1]) }, { k: 's', icon, rot: deg(t.heading ?? t.cogRad ?? 0), name: t.label }));
+      nT += 1;
+    }
+    this._dynData = fc(all);
+    m.getSource('dyn').setData(this._dynData);
 
     // orientation: north-up, course-up or head-up, following the own ship
     const bearing = this.orientation === 'course' ? deg(cog) : this.orientation === 'head' ? deg(psi) : 0;
@@ -252,8 +301,14 @@ export class Chart {
     else if (m.getBearing() !== bearing) m.jumpTo({ bearing });
 
     Object.assign(this.stats, {
-      updates: this.stats.updates + 1, targets: tf.length, cones: cones.length,
-      lidarPoints: pts.length, ellipses: ellFeats.length, bearing,
+      updates: this.stats.updates + 1, targets: nT, cones: nCones, planStages: nPlan, criticalStages: nCrit,
+      lidarPoints: pts.length, ellipses: nEll, bearing, features: all.length,
     });
   }
+}
+
+// '#rrggbb' with an alpha -> 'rgba(r,g,b,a)'
+function hexA(hex, a) {
+  const n = parseInt(hex.slice(1), 16);
+  return `rgba(${(n >> 16) & 255},${(n >> 8) & 255},${n & 255},${a})`;
 }

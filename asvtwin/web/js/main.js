@@ -6,6 +6,7 @@ import { Chart } from './chart.js';
 import { View3D } from './view3d.js';
 import { TargetTable } from './table.js';
 import { renderStatus } from './status.js';
+import { setupWhatIf } from './whatif.js';
 
 const $ = (id) => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -14,7 +15,7 @@ const rateHz = Math.min(60, Math.max(0.1, Number(params.get('rate_hz') || 10)));
 const headers = { 'content-type': 'application/json', ...(token ? { 'x-asvtwin-token': token } : {}) };
 
 const V = window.asvtwinViewer = {
-  ready: false, snapshots: 0, lastSeq: null, bytes: 0, fps: 0, errors: [], events: [],
+  ready: false, snapshots: 0, lastSeq: null, bytes: 0, errors: [], events: [],
   controls: {}, lastControl: null, conn: { connected: false, rateHz, bytes: 0 }, info: null,
 };
 window.addEventListener('error', (e) => V.errors.push(String(e.message)));
@@ -131,9 +132,14 @@ async function main() {
   const table = new TargetTable($('targets').querySelector('tbody'), $('targets').querySelector('thead tr'));
   V.table = table.stats;
   $('btn-ack-all').addEventListener('click', () => table.ackAll());
+  V.whatif = {};
+  setupWhatIf(chart, async (path, body) => {
+    const r = await fetch(path, { method: 'POST', headers, body: JSON.stringify(body) });
+    return { status: r.status, body: await r.json() };
+  }, V.whatif);
 
   // controls
-  let latest = null, fresh = false;
+  let latest = null, fresh = false, requestFrame = () => {};
   // paused or not: the snapshot says so, but a twin may publish nothing while paused, so a
   // successful pause/resume counts until a newer snapshot arrives
   let pauseIntent = null;
@@ -156,7 +162,7 @@ async function main() {
     draft = []; chart.setDraft(draft); $('btn-route-send').disabled = true; setMode(null);
   });
   $('btn-inject').addEventListener('click', () => setMode('inject'));
-  $('sel-orient').addEventListener('change', (e) => { chart.orientation = e.target.value; fresh = true; });
+  $('sel-orient').addEventListener('change', (e) => { chart.orientation = e.target.value; fresh = true; requestFrame(); });
   $('chk-follow').addEventListener('change', (e) => { chart.follow = e.target.checked; });
   $('sel-palette').addEventListener('change', (e) => {
     document.body.className = e.target.value; chart.setPalette(e.target.value);
@@ -197,17 +203,29 @@ async function main() {
       latest = JSON.parse(dec.decode(ev.data));
       V.snapshots += 1; V.lastSeq = latest.seq; V.latest = latest;
       fresh = true;
+      requestFrame();
       ws.send(JSON.stringify({ ack: latest.seq }));
     };
   };
   connect();
 
-  // the render loop: the chart and the 3-D view on new data (at most 5 times a second: an
-  // ECDIS refreshes about once a second), the table and the status panel twice a second
-  let lastChart = 0, lastSlow = 0, frames = 0, fpsT0 = performance.now(), targets = [];
-  const loop = (now) => {
-    if (latest && fresh && now - lastChart >= 200) {
-      fresh = false; lastChart = now;
+  // Drawing on demand: nothing runs per animation frame unless something changed. A
+  // snapshot (or a control that changes the picture) asks for one frame; in it the chart
+  // and the 3-D view take the newest snapshot. The table and the status panel change DOM
+  // text, which costs style and layout, so they follow at most twice a second, on a timer.
+  let targets = [], frameAsked = false, lastSlow = 0, slowTimer = null;
+  const slow = () => {
+    slowTimer = null;
+    if (!latest) return;
+    lastSlow = performance.now();
+    table.render(targets);
+    $('target-count').textContent = `(${targets.length}, ${table.stats.dangerous} dangerous)`;
+    renderStatus($('status'), latest, V.conn);
+  };
+  const drawFrame = () => {
+    frameAsked = false;
+    if (latest && fresh) {
+      fresh = false;
       targets = deriveTargets(latest, limits);
       V.targets = targets.length;
       chart.update(latest, targets);
@@ -215,21 +233,15 @@ async function main() {
       $('clock').textContent = `t = ${latest.t_s.toFixed(1)} s${isPaused() ? ' (paused)' : ''}`;
       $('btn-pause').textContent = isPaused() ? 'Resume' : 'Pause';
       if (replay && !seeking) { $('seek').value = String(latest.t_s); $('seek-label').textContent = `${latest.t_s.toFixed(1)} / ${info.duration_s.toFixed(1)} s`; }
+      if (slowTimer === null) slowTimer = setTimeout(slow, Math.max(0, 500 - (performance.now() - lastSlow)));
     }
-    if (latest && now - lastSlow >= 500) {
-      lastSlow = now;
-      table.render(targets);
-      $('target-count').textContent = `(${targets.length}, ${table.stats.dangerous} dangerous)`;
-      renderStatus($('status'), latest, V.conn);
-    }
-    if (latest) view.render();
-    frames += 1;
-    if (now - fpsT0 >= 1000) { V.fps = (frames * 1000) / (now - fpsT0); frames = 0; fpsT0 = now; }
-    requestAnimationFrame(loop);
+    view.render();
   };
+  requestFrame = () => { if (!frameAsked) { frameAsked = true; requestAnimationFrame(drawFrame); } };
+  view.onDirty = requestFrame;
   await chart.ready;
   V.ready = true;
-  requestAnimationFrame(loop);
+  requestFrame();
 }
 
 main().catch((err) => { V.errors.push(String(err)); logEvent(`viewer failed: ${err}`); });

@@ -29,8 +29,25 @@ export class TargetTable {
 
   ackAll() { (this.last || []).forEach((t) => t.danger && this.acked.add(t.key)); this.render(this.last || []); }
 
+  // One row per target, kept between renders: only the cells whose text changed are
+  // written and rows are moved only when the order changed, so a render at 2 Hz costs a
+  // little style and layout, not a rebuilt table.
+  _row(t) {
+    let r = this.rows.get(t.key);
+    if (!r) {
+      const tr = document.createElement('tr');
+      tr.dataset.key = t.key;
+      const cells = [];
+      for (let i = 0; i < 10; i++) cells.push(tr.appendChild(document.createElement('td')));
+      r = { tr, cells, texts: new Array(10).fill(null), cls: null, ack: null };
+      this.rows.set(t.key, r);
+    }
+    return r;
+  }
+
   render(targets) {
     this.last = targets;
+    this.rows = this.rows || new Map();
     for (const k of [...this.acked]) if (!targets.some((t) => t.key === k && t.danger)) this.acked.delete(k);
     const key = this.sortKey, sign = this.asc ? 1 : -1;
     const val = (t) => (key === 'label' || key === 'source' ? t[key] : t[key] ?? Infinity);
@@ -38,18 +55,35 @@ export class TargetTable {
       const x = val(a), y = val(b);
       return (x < y ? -1 : x > y ? 1 : 0) * sign;
     });
-    const html = rows.map((t) => {
-      const cls = [t.danger ? 'danger' : '', t.danger && this.acked.has(t.key) ? 'acked' : '', t.lost ? 'lost' : ''].join(' ');
-      const ack = t.danger && !this.acked.has(t.key) ? `<button data-ack="${t.key}">ACK</button>` : '';
-      return `<tr class="${cls}" data-key="${t.key}"><td>${t.label}</td><td>${fmt(t.range / NM, 2)}</td><td>${fmt(t.bearing, 0)}</td>`
-        + `<td>${fmt(t.sog / KN, 1)}</td><td>${t.cogRad == null ? '–' : fmt(deg(t.cogRad), 0)}</td>`
-        + `<td>${t.cpa == null ? '–' : fmt(t.cpa / NM, 2)}</td><td>${t.tcpa == null ? '–' : fmt(t.tcpa / 60, 1)}</td>`
-        + `<td>${t.source}</td><td>${fmt(t.age, 0)}</td><td>${ack}</td></tr>`;
-    }).join('');
-    this.tbody.innerHTML = html;
-    // unacknowledged dangerous targets flash: the table toggles on every render (2 Hz)
+    // unacknowledged dangerous targets flash: their rows toggle on every render (2 Hz)
     this.blink = !this.blink;
-    this.tbody.parentElement.classList.toggle('blink', this.blink);
+    const seen = new Set();
+    let writes = 0;
+    const order = rows.map((t) => {
+      const r = this._row(t);
+      seen.add(t.key);
+      const texts = [t.label, fmt(t.range / NM, 2), fmt(t.bearing, 0), fmt(t.sog / KN, 1),
+        t.cogRad == null ? '–' : fmt(deg(t.cogRad), 0), t.cpa == null ? '–' : fmt(t.cpa / NM, 2),
+        t.tcpa == null ? '–' : fmt(t.tcpa / 60, 1), t.source, fmt(t.age, 0)];
+      for (let i = 0; i < 9; i++) if (r.texts[i] !== texts[i]) { r.cells[i].textContent = texts[i]; r.texts[i] = texts[i]; writes += 1; }
+      const acked = this.acked.has(t.key);
+      const cls = [t.danger ? 'danger' : '', t.danger && acked ? 'acked' : '', t.danger && !acked && this.blink ? 'blink' : '', t.lost ? 'lost' : ''].join(' ').trim();
+      if (r.cls !== cls) { r.tr.className = cls; r.cls = cls; }
+      const ack = t.danger && !acked;
+      if (r.ack !== ack) {
+        r.cells[9].replaceChildren();
+        if (ack) { const bt = document.createElement('button'); bt.dataset.ack = t.key; bt.textContent = 'ACK'; r.cells[9].appendChild(bt); }
+        r.ack = ack;
+      }
+      return r.tr;
+    });
+    for (const [k, r] of this.rows) if (!seen.has(k)) { r.tr.remove(); this.rows.delete(k); }
+    const kids = this.tbody.children;
+    let same = kids.length === order.length;
+    for (let i = 0; same && i < order.length; i++) same = kids[i] === order[i];
+    if (!same) this.tbody.replaceChildren(...order);
+    this.stats.cellWrites = writes;
+    this.stats.reordered = !same;
     const dangerous = targets.filter((t) => t.danger);
     Object.assign(this.stats, {
       rows: rows.length, dangerous: dangerous.length,

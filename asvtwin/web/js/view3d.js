@@ -22,7 +22,7 @@ export class View3D {
     this.el = el;
     this.stats = { frames: 0, hulls: 0, terrainVertices: 0, planPoints: 0 };
     const w = el.clientWidth || 400, h = el.clientHeight || 280;
-    this.renderer = new THREE.WebGLRenderer({ antialias: false });
+    this.renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: false, powerPreference: 'high-performance' });
     this.renderer.setPixelRatio(1);
     this.renderer.setSize(w, h);
     el.appendChild(this.renderer.domElement);
@@ -46,8 +46,14 @@ export class View3D {
     el.addEventListener('wheel', (e) => {
       e.preventDefault();
       this.distance = Math.min(60, Math.max(2, this.distance * (e.deltaY > 0 ? 1.15 : 0.87)));
-      this.dirty = true;
+      if (this.last) this._follow(...this.last);
+      this.markDirty();
     }, { passive: false });
+    // drag sideways to look around the own ship (the camera stays on it)
+    let dragX = null;
+    el.addEventListener('pointerdown', (e) => { dragX = e.clientX; el.setPointerCapture(e.pointerId); });
+    el.addEventListener('pointermove', (e) => { if (dragX !== null) { this.orbitBy(0.01 * (e.clientX - dragX)); dragX = e.clientX; } });
+    el.addEventListener('pointerup', () => { dragX = null; });
     new ResizeObserver(() => this.resize()).observe(el);
   }
 
@@ -83,7 +89,13 @@ export class View3D {
     this.renderer.setSize(w, h);
     this.camera.aspect = w / h;
     this.camera.updateProjectionMatrix();
+    this.markDirty();
+  }
+
+  // Something changed: draw in the next frame (main.js sets onDirty to ask for one).
+  markDirty() {
     this.dirty = true;
+    if (this.onDirty) this.onDirty();
   }
 
   _ensureTargets(n) {
@@ -135,12 +147,25 @@ export class View3D {
       this.scene.add(this.planLine);
     }
     this.stats.planPoints = plan.length;
-    // the camera follows from astern and above, looking a little ahead of the bow
-    const d = this.distance * L;
-    const back = toV(n - d * Math.cos(psi), e - d * Math.sin(psi), 0.45 * d + 0.3 * L);
+    this.last = [n, e, psi, L];
+    this._follow(n, e, psi, L);
+    this.dirty = true;
+  }
+
+  // The camera follows from astern and above (orbit: `this.orbit` [rad] around the own
+  // ship from astern), looking a little ahead of the bow.
+  _follow(n, e, psi, L) {
+    const d = this.distance * L, a = psi + (this.orbit || 0);
+    const back = toV(n - d * Math.cos(a), e - d * Math.sin(a), 0.45 * d + 0.3 * L);
     this.camera.position.copy(back);
     this.camera.lookAt(toV(n + 1.5 * L * Math.cos(psi), e + 1.5 * L * Math.sin(psi), 0));
-    this.dirty = true;
+  }
+
+  // Turn the camera around the own ship by `rad` (a drag, the benchmark's orbit).
+  orbitBy(rad) {
+    this.orbit = ((this.orbit || 0) + rad) % (2 * Math.PI);
+    if (this.last) this._follow(...this.last);
+    this.markDirty();
   }
 
   render() {
