@@ -11,7 +11,14 @@ certified plan without a solve. ``cpu_ms_*`` is the process CPU time of a call (
 affected by other processes on a shared machine than the wall time ``solve_ms_*``; the
 1-minute load average is recorded beside them).
 
-Usage: ``python benchmarks/psf.py [--backend auto|acados|casadi-ipopt] [--steps 300]``
+``steered``: the same field with a learner that steers (the heading autopilot holding
+north at 0.3 m/s), so that the ship actually goes through the field: the naive
+full-thrust learner above spins CyberShip II in circles near the start (the hull is
+course-unstable at full thrust) and meets few obstacles. Reported beside the goal's
+numbers, not instead of them (``--steered-steps 0`` skips it).
+
+Usage: ``python benchmarks/psf.py [--backend auto|acados|casadi-ipopt] [--steps 300]
+[--steered-steps 300]``
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ from collections import Counter
 import numpy as np
 
 from asvtwin.control import CircleObstacles, MovingObstacles, PsfConfig, SafetyFilter
+from asvtwin.guidance import HeadingSpeedAutopilot
 from asvtwin.vessel import VesselSimulator, cybership2
 
 
@@ -33,6 +41,8 @@ def main() -> None:
     ap.add_argument("--backend", default="auto")
     ap.add_argument("--steps", type=int, default=300)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--steered-steps", type=int, default=300,
+                    help="calls of the steered run (0: skip it)")
     args = ap.parse_args()
 
     params = cybership2()
@@ -52,36 +62,65 @@ def main() -> None:
                    rng.uniform(0.15, 0.35, n_moving)], axis=1)
     mr = rng.uniform(1.0, 2.0, n_moving)
 
-    sim = VesselSimulator(params, [0.0, 0.0, 0.0, 0.3, 0.0, 0.0], dt_s=0.1)
-    u_L = np.array([2.0, 0.0, 0.0])
-    call_ms, solver_ms, fallbacks, violations, min_clear = [], [], 0, 0, np.inf
-    kinds: Counter[str] = Counter()
-    cpu_ms: list[float] = []
-    interventions = passed = 0
-    x = sim.state
-    for k in range(args.steps):
-        t = k * cfg.dt_s
-        moving = MovingObstacles.constant_velocity(mp + t * mv, mv, mr, N=cfg.N, dt_s=cfg.dt_s)
-        c0, p0 = time.perf_counter(), time.process_time()
-        res = psf.filter(x, u_L, [static, moving], t_s=t)
-        c1, p1 = time.perf_counter(), time.process_time()
-        if k >= 5:
-            call_ms.append((c1 - c0) * 1e3)
-            cpu_ms.append((p1 - p0) * 1e3)
-            solver_ms.append(res.solve_time_s * 1e3)
-        fallbacks += res.fallback != "none"
-        if res.fallback != "none":
-            kinds[res.fallback] += 1
-        interventions += res.intervened
-        passed += res.passed_through
-        for j in range(5):
-            x = sim.step(res.u0)
-            tj = t + 0.1 * (j + 1)
-            gap = min(float(np.min(np.linalg.norm(static.centres - x[:2], axis=1) - static.radii)),
-                      float(np.min(np.linalg.norm(mp + tj * mv - x[:2], axis=1) - mr)))
-            min_clear = min(min_clear, gap)
-            violations += gap < psf.d_safe_m
-    a, b = np.asarray(call_ms), np.asarray(solver_ms)
+    def run(steered: bool, steps: int) -> dict:
+        psf.reset()
+        sim = VesselSimulator(params, [0.0, 0.0, 0.0, 0.3, 0.0, 0.0], dt_s=0.1)
+        u_L = np.array([2.0, 0.0, 0.0])
+        ap = HeadingSpeedAutopilot(params) if steered else None
+        call_ms, solver_ms, fallbacks, violations, min_clear = [], [], 0, 0, np.inf
+        kinds: Counter[str] = Counter()
+        cpu_ms: list[float] = []
+        interventions = passed = 0
+        x = sim.state
+        for k in range(steps):
+            t = k * cfg.dt_s
+            moving = MovingObstacles.constant_velocity(mp + t * mv, mv, mr, N=cfg.N, dt_s=cfg.dt_s)
+            if ap is not None:  # steer north at 0.3 m/s through the field
+                u_L = ap.tau(x, 0.0, 0.3)
+            c0, p0 = time.perf_counter(), time.process_time()
+            res = psf.filter(x, u_L, [static, moving], t_s=t)
+            c1, p1 = time.perf_counter(), time.process_time()
+            if k >= 5:
+                call_ms.append((c1 - c0) * 1e3)
+                cpu_ms.append((p1 - p0) * 1e3)
+                solver_ms.append(res.solve_time_s * 1e3)
+            fallbacks += res.fallback != "none"
+            if res.fallback != "none":
+                kinds[res.fallback] += 1
+            interventions += res.intervened
+            passed += res.passed_through
+            for j in range(5):
+                x = sim.step(res.u0)
+                tj = t + 0.1 * (j + 1)
+                gap = min(float(np.min(np.linalg.norm(static.centres - x[:2], axis=1) - static.radii)),
+                          float(np.min(np.linalg.norm(mp + tj * mv - x[:2], axis=1) - mr)))
+                min_clear = min(min_clear, gap)
+                violations += gap < psf.d_safe_m
+        a, b = np.asarray(call_ms), np.asarray(solver_ms)
+        return {"a": a, "b": b, "cpu_ms": cpu_ms, "fallbacks": fallbacks, "kinds": kinds,
+                "interventions": interventions, "passed": passed,
+                "violations": violations, "min_clear": min_clear, "x": x}
+
+    out = run(False, args.steps)
+    a, b, cpu_ms, fallbacks, kinds = (out["a"], out["b"], out["cpu_ms"], out["fallbacks"],
+                                      out["kinds"])
+    interventions, passed, violations = (out["interventions"], out["passed"],
+                                         out["violations"])
+    min_clear, x = out["min_clear"], out["x"]
+    steered = {}
+    if args.steered_steps > 0:
+        st = run(True, args.steered_steps)
+        steered = {
+            "steps": args.steered_steps,
+            "fallback_rate": round(st["fallbacks"] / args.steered_steps, 4),
+            "fallback_kinds": dict(st["kinds"]),
+            "solve_ms_median": round(float(np.median(st["a"])), 3),
+            "solve_ms_p95": round(float(np.percentile(st["a"], 95)), 3),
+            "cpu_ms_p95": round(float(np.percentile(st["cpu_ms"], 95)), 3),
+            "violations": int(st["violations"]),
+            "min_clearance_m": round(float(st["min_clear"]), 3),
+            "distance_north_m": round(float(st["x"][0]), 2),
+        }
     print(json.dumps({
         "backend": psf.backend.name,
         "N": cfg.N,
@@ -107,6 +146,7 @@ def main() -> None:
         "d_safe_m": psf.d_safe_m,
         "distance_north_m": round(float(x[0]), 2),
         "build_s": round(build_s, 2),
+        "steered": steered,
     }))
 
 

@@ -1,16 +1,21 @@
 """The safety filter through the classic encounter set; prints one JSON object.
 
 Runs every case of :func:`asvtwin.control.encounters.encounter_cases` (22 vessel
-encounters with 1-3 targets, 2 coast approaches including a harbour with piers, 2 sudden
-rocks) with a path-following learner (LOS + autopilot) through the filter, for each
+encounters with 1-3 targets, a head-on followed by 100 m of open water, 2 coast
+approaches including a harbour with piers, 2 sudden rocks) with a path-following learner (LOS + autopilot) through the filter, for each
 requested hull scale and backend, and the same cases unfiltered as the control.
 
 Keys: ``collisions``, ``groundings`` (sums over every filtered run), ``min_distance_m``
 (closest approach to any vessel or rock, from the own ship's origin to the obstacle's
 edge), ``min_distance_ratio`` (that over d_safe), ``min_distance_land_m``, ``fallbacks``
 (by kind), ``fallback_rate`` (per call), ``starboard_share`` (of the runs where COLREG
-expects an alteration to starboard and the ship manoeuvred), ``goal_reached`` (of the runs
-where the goal is reachable), ``unfiltered_collisions``, per-setting breakdowns, and the
+expects an alteration to starboard and the ship manoeuvred),
+``fallback_sides_where_starboard_expected`` (the fallbacks applied in those runs, by the
+side their plan goes: starboard, port, straight), ``goal_reached`` (of the runs
+where the goal is reachable), ``open_water_intervention_share`` (of the calls with
+nothing within 15 ship lengths, those where the filter changed u_L),
+``yaw_rate_max_avoidance_ratio`` per setting (the largest |r| while a changed input was
+applied, over the comfort bound ν_max,r), ``unfiltered_collisions``, per-setting breakdowns, and the
 median filter call time [ms].
 
 Usage: ``python benchmarks/psf_encounters.py [--backend acados,casadi-ipopt]
@@ -60,7 +65,8 @@ def main() -> None:
                 rs.append(r)
                 print(f"{scale:5s} {backend:12s} {c.name:45s} min {r.min_distance_m / d_safe:6.2f}"
                       f" d_safe, land {r.min_distance_land_m / d_safe:6.2f}, coll {r.collisions},"
-                      f" goal {r.goal_reached}, fb {r.fallbacks}, stb {r.starboard}",
+                      f" goal {r.goal_reached}, fb {r.fallbacks} sides {r.fallback_sides},"
+                      f" stb {r.starboard}",
                       file=sys.stderr, flush=True)
             fb = Counter()
             for r in rs:
@@ -73,6 +79,14 @@ def main() -> None:
                 "fallback_rate": round(sum(fb.values()) / max(calls, 1), 4),
                 "goal_reached": f"{sum(r.goal_reached for r in rs if r.goal_expected)}/"
                                 f"{sum(r.goal_expected for r in rs)}",
+                "starboard": f"{sum(bool(r.starboard) for r in rs)}/"
+                             f"{sum(r.starboard is not None for r in rs)}",
+                "min_distance_land_ratio": round(min(r.min_distance_land_m for r in rs)
+                                                 / d_safe, 4),
+                "open_water_interventions": f"{sum(r.open_water_interventions for r in rs)}/"
+                                            f"{sum(r.open_water_calls for r in rs)}",
+                "yaw_rate_max_avoidance_ratio": round(max(
+                    r.yaw_rate_max_avoidance for r in rs) / float(psf.nu_max[2]), 3),
                 "call_ms_median": round(float(np.median(np.concatenate(
                     [r.call_ms for r in rs]))), 3),
             }
@@ -82,6 +96,10 @@ def main() -> None:
         fb_all.update(r.fallbacks)
     calls = sum(r.calls for r, _ in runs)
     stb = [r.starboard for r, _ in runs if r.starboard is not None]
+    fb_sides: Counter = Counter()  # fallbacks where COLREG expects starboard, by side
+    for r, _ in runs:
+        if r.starboard_expected:
+            fb_sides.update(r.fallback_sides)
     print(json.dumps({
         "cases": len(cases),
         "runs": len(runs),
@@ -95,8 +113,13 @@ def main() -> None:
         "calls": calls,
         "starboard_share": round(sum(stb) / len(stb), 3) if stb else None,
         "starboard_runs": len(stb),
+        "fallback_sides_where_starboard_expected": dict(fb_sides),
         "goal_reached": f"{sum(r.goal_reached for r, _ in runs if r.goal_expected)}/"
                         f"{sum(r.goal_expected for r, _ in runs)}",
+        "open_water_calls": sum(r.open_water_calls for r, _ in runs),
+        "open_water_intervention_share": round(
+            sum(r.open_water_interventions for r, _ in runs)
+            / max(sum(r.open_water_calls for r, _ in runs), 1), 4),
         "unfiltered_collisions": unfiltered,
         "settings": settings,
         "wall_s": round(time.perf_counter() - t0, 1),

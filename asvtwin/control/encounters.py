@@ -10,6 +10,8 @@ Each :class:`EncounterCase` is written at model scale (CyberShip II, L = 1.255 m
   target keeps a constant velocity that brings it to the own ship's unfiltered track
   point at its meeting time (50 s, then 62 s and 38 s for a second and third vessel):
   without the filter every one of them collides.
+- **Open water** (1): the head-on encounter, then 100 m (80 ship lengths) more of
+  route with nothing near: how often the filter still changes the learner's input.
 - **Coast approaches** (2): a headland that juts across the route, and a harbour front
   with piers (a quay with five piers drawn as a chart draws them, 125 short shore
   segments, 30 to 60 of them within reach at a time; drawn for this set, not charted).
@@ -36,6 +38,7 @@ from itertools import pairwise
 import numpy as np
 
 from asvtwin.checks import F8 as _F8
+from asvtwin.control.fallback import plan_side
 from asvtwin.control.obstacles import CircleObstacles, CoastSegments, MovingObstacles
 from asvtwin.control.psf import SafetyFilter
 from asvtwin.vessel.params import VesselParams
@@ -46,6 +49,10 @@ __all__ = ["SINGLE_KINDS", "EncounterCase", "EncounterRun", "encounter_cases",
 
 L_MODEL = 1.255  # m
 U_CRUISE = 0.3  # m/s, model scale (CyberShip II is course-unstable above ~0.35 m/s)
+_SIDE_WORD = {1: "starboard", -1: "port", 0: "straight"}
+#: Open water: nothing within this many ship lengths (beyond d_safe + d_f + one horizon's
+#: run at cruise speed, ~13 L at either scale, no obstacle can bind a plan)
+OPEN_WATER_L = 15.0
 T_MEET = (50.0, 62.0, 38.0)  # s: meeting times of the first, second and third vessel
 #: Single-vessel encounters: (course of the target relative to own [deg], speed factor).
 SINGLE_KINDS: dict[str, tuple[float, float]] = {
@@ -156,8 +163,8 @@ def _harbour_coast() -> _F8:
     return np.array(segs)
 
 
-def encounter_cases(*, include: tuple[str, ...] = ("vessels", "coast", "sudden")
-                    ) -> list[EncounterCase]:
+def encounter_cases(*, include: tuple[str, ...] = ("vessels", "open_water", "coast",
+                                                  "sudden")) -> list[EncounterCase]:
     """The encounter set at model scale (see the module docstring)."""
     out: list[EncounterCase] = []
     if "vessels" in include:
@@ -167,6 +174,11 @@ def encounter_cases(*, include: tuple[str, ...] = ("vessels", "coast", "sudden")
     U = U_CRUISE
     x0 = np.array([0.0, 0.0, 0.0, U, 0.0, 0.0])
     route = np.array([[0.0, 0.0], [60.0, 0.0]])
+    if "open_water" in include:
+        # head-on, then 100 m more of open water: does the filter leave the learner be?
+        c = _vessel_case(("head_on",))
+        out.append(replace(c, name="head_on_then_open_water", family="open_water",
+                           route=np.array([[0.0, 0.0], [130.0, 0.0]]), duration_s=600.0))
     if "coast" in include:
         # a headland from the east reaching 1 m west of the route at 30 m north
         head = _polygon_segments([[26.0, 25.0], [30.0, -1.0], [34.0, 25.0]])
@@ -204,6 +216,18 @@ class EncounterRun:
     starboard: bool | None  # None: not expected, or no manoeuvre
     call_ms: list[float]
     goal_expected: bool = True
+    starboard_expected: bool = False
+    #: the side of every fallback plan applied (:func:`~asvtwin.control.fallback.plan_side`):
+    #: "starboard", "port" or "straight"
+    fallback_sides: dict[str, int] = field(default_factory=dict)
+    #: calls with no obstacle, vessel or coast within :data:`OPEN_WATER_L` ship lengths,
+    #: and how many of them the filter modified u_L on
+    open_water_calls: int = 0
+    open_water_interventions: int = 0
+    #: largest |r| [rad/s] of the own ship while an input the filter changed was applied
+    #: (its avoidance manoeuvres), and over the whole run
+    yaw_rate_max_avoidance: float = 0.0
+    yaw_rate_max: float = 0.0
 
     def to_dict(self) -> dict:
         d = dict(self.__dict__)
@@ -233,12 +257,14 @@ def run_encounter(case: EncounterCase, params: VesselParams, psf: SafetyFilter |
     coll = grounded = 0
     in_contact = False
     fb: Counter[str] = Counter()
-    calls = inter = 0
+    sides: Counter[str] = Counter()
+    calls = inter = ow_calls = ow_inter = 0
+    r_avoid = r_all = 0.0
     ys: list[float] = []
     call_ms: list[float] = []
     goal = False
     t = 0.0
-    t_last_cpa = float(np.max(T_MEET[: len(c.target_r)]) * c.duration_s / (4 * T_MEET[0])
+    t_last_cpa = float(np.max(T_MEET[: len(c.target_r)]) * math.sqrt(L / L_MODEL)
                        ) if len(c.target_r) else 0.0
     while t < c.duration_s:
         g = los.step(x[:2])
@@ -265,12 +291,29 @@ def run_encounter(case: EncounterCase, params: VesselParams, psf: SafetyFilter |
             u = res.u0
             calls += 1
             inter += res.intervened
+            near = math.inf
+            if len(c.target_r):
+                near = float(np.min(np.linalg.norm(c.targets_at(t) - x[:2], axis=1)
+                                    - c.target_r))
+            if known.any():
+                near = min(near, float(np.min(np.linalg.norm(
+                    c.circles[known, :2] - x[:2], axis=1) - c.circles[known, 2])))
+            if len(coast):
+                near = min(near, float(coast.distances(x[:2])[0].min()))
+            if near > OPEN_WATER_L * L:
+                ow_calls += 1
+                ow_inter += res.intervened
             if res.fallback != "none":
                 fb[res.fallback] += 1
+                sides[_SIDE_WORD[plan_side(res.x_pred, L)]] += 1
         else:
             u = u_L
+        changed = psf is not None and res.intervened
         for j in range(sim_substeps):
             x = sim.step(u)
+            r_all = max(r_all, abs(float(x[5])))
+            if changed:
+                r_avoid = max(r_avoid, abs(float(x[5])))
             tj = t + (j + 1) * dt / sim_substeps
             d = math.inf
             if len(c.target_r):
@@ -300,4 +343,7 @@ def run_encounter(case: EncounterCase, params: VesselParams, psf: SafetyFilter |
         length_m=L, collisions=int(coll), groundings=int(grounded), min_distance_m=min_d,
         min_distance_land_m=min_land, goal_reached=goal, calls=calls, interventions=inter,
         fallbacks=dict(fb), starboard=starboard, call_ms=call_ms,
-        goal_expected=c.goal_expected)
+        goal_expected=c.goal_expected, starboard_expected=c.starboard_expected,
+        fallback_sides=dict(sides), open_water_calls=ow_calls,
+        open_water_interventions=ow_inter, yaw_rate_max_avoidance=r_avoid,
+        yaw_rate_max=r_all)

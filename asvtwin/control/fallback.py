@@ -19,23 +19,28 @@ state and scored against the obstacles known now:
   horizon, then full ahead (astern) for a quarter, then coasting (the way out from rest).
 
 The filter takes the certified candidate closest to the learner's input (the least
-intervention); without one, the candidate whose closest approach to any obstacle over the
+intervention), preferring one that does not go to port where COLREG expects starboard,
+then one that keeps the yaw rate within the comfort bound; without one, the candidate whose closest approach to any obstacle over the
 horizon is largest (inside d_safe: the one that gets furthest out by the horizon's end
 without coming closer on the way). The learner's raw input is never applied on a failed solve.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import Enum
+from typing import NamedTuple
 
 import numpy as np
 
 from asvtwin.checks import F8 as _F8
+from asvtwin.control.certification import Certifier
 from asvtwin.control.terminal_set import braking_input
 from asvtwin.vessel.params import VesselParams
 
-__all__ = ["BackupPlan", "Candidate", "Fallback", "backup_input", "candidate_inputs"]
+__all__ = ["BackupPlan", "Candidate", "Fallback", "Scored", "backup_input",
+           "candidate_inputs", "plan_side", "select_candidate"]
 
 
 
@@ -153,3 +158,94 @@ def damp_yaw(U: _F8, X: _F8, k_r: float, lb: float, ub: float, start: int) -> No
     """Set τ_r = −k_r r_k (clipped) on stages ``start..N-1`` of ``U`` from states ``X``."""
     if start < U.shape[0]:
         U[start:, 2] = np.clip(-k_r * X[start:-1, 5], lb, ub)
+
+
+def plan_side(X: _F8, length_m: float) -> int:
+    """Which way a plan's states ``X`` (N+1, 6) go from the line ahead of stage 0:
+    +1 to starboard, −1 to port, 0 neither (mean lateral offset over stages 1..N within
+    a quarter ship length ``length_m``). The offset is measured across the initial
+    heading ψ_0, positive to starboard: −sin ψ_0 Δn + cos ψ_0 Δe."""
+    psi = float(X[0, 2])
+    lat = -np.sin(psi) * (X[1:, 0] - X[0, 0]) + np.cos(psi) * (X[1:, 1] - X[0, 1])
+    m = float(np.mean(lat))
+    if abs(m) < 0.25 * length_m:
+        return 0
+    return 1 if m > 0 else -1
+
+
+class Scored(NamedTuple):
+    """A candidate re-simulated and certified against the obstacles known now."""
+
+    kind: Fallback
+    detail: str
+    X: _F8  #: states (N+1, 6)
+    U: _F8  #: inputs (N, 3)
+    margins: _F8  #: per-stage obstacle margins (N+1, m + k) [m]
+    term: float  #: terminal margin 1 − ν_Nᵀ P_f ν_N
+    certified: bool
+    why: str  #: why not certified ("" if it is)
+    closest: float  #: closest approach over stages 1..N against d_safe alone [m]
+    dist: float  #: ‖u_0 − u_L‖²_W, the size of the intervention
+
+
+def select_candidate(rows: list[Scored], x: _F8, m0: _F8, cert: Certifier, *,
+                     length_m: float, r_comfort: float, prefer_starboard: bool,
+                     ) -> tuple[Scored, list[tuple[str, str, float, bool]]]:
+    """The candidate to apply, and every candidate's score (kind, detail, closest
+    approach [m], certified), best first.
+
+    - Certified candidates exist: the one nearest u_L (W-norm), preferring first one
+      that does not go to port where COLREG expects starboard (``prefer_starboard``:
+      rules 14, 15, 17(c)), then one whose yaw rate stays within ``r_comfort`` [rad/s]
+      (or the present |r|, if larger).
+    - Inside d_safe (some stage-0 margin ``m0`` < 0): the plan that gets out without
+      closing in, then the one that ends furthest out.
+    - Otherwise the largest closest approach; where COLREG expects starboard, a
+      starboard or straight plan within 10 % of d_safe of it (and not inside d_safe
+      where the best is outside) is taken instead. The choice says so in its detail.
+    """
+    d_safe = cert.d_safe_m
+
+    def port(r: Scored) -> bool:
+        return prefer_starboard and plan_side(r.X, length_m) < 0
+
+    def brisk(r: Scored) -> bool:  # the plan turns faster than the comfort bound
+        return bool(np.max(np.abs(r.X[1:, 5])) > max(r_comfort, abs(float(x[5]))))
+
+    def closest(r: Scored) -> tuple[float, float]:
+        return (r.closest if math.isfinite(r.closest) else -1e300, r.term)
+
+    certified = [r for r in rows if r.certified]
+    note = ""
+    if certified:
+        pick = min(certified, key=lambda r: (port(r), brisk(r), r.dist))
+        if port(min(certified, key=lambda r: r.dist)) and not port(pick):
+            note = "starboard preferred (COLREG), a port plan was nearer u_L"
+    elif m0.size and m0.min() < 0:  # inside d_safe: out by the end, no closer on the way
+        floor = np.minimum(m0, 0.0) - cert.tol_m
+
+        def out_score(r: Scored) -> tuple[bool, float, float]:
+            # first a plan that gets out without closing in, then the one that ends
+            # furthest out (staying put does not decrease a margin but never leaves)
+            mg = r.margins
+            end = float(cert.terminal_clearance(mg, r.term).min()) if mg.shape[1] else 0.0
+            leaves = end >= -cert.tol_m
+            return (leaves and bool(np.all(mg[1:-1] >= floor)), end, r.closest)
+
+        pick = max(rows, key=out_score)
+    else:
+        pick = max(rows, key=closest)
+        if port(pick):
+            lim = pick.closest - 0.1 * d_safe
+            alt = [r for r in rows if not port(r) and r.closest >= lim
+                   and (pick.closest < 0 or r.closest >= 0)]
+            if alt:
+                gap = pick.closest
+                pick = max(alt, key=closest)
+                note = ("starboard preferred (COLREG), a port plan came "
+                        f"{gap - pick.closest:.2f} m further off")
+    if note:
+        pick = pick._replace(detail=f"{pick.detail}; {note}")
+    scores = sorted(((r.kind.value, r.detail, round(float(r.closest + d_safe), 4),
+                      bool(r.certified)) for r in rows), key=lambda q: -q[2])
+    return pick, scores

@@ -31,12 +31,21 @@ from numpy.typing import ArrayLike, NDArray
 from asvtwin.checks import F8 as _F8
 from asvtwin.checks import check_vector
 from asvtwin.control.backends import Backend, available_backends, backend_lock, make_backend
-from asvtwin.control.backends.ocp import DUMMY_DISTANCE_FACTOR, OcpSpec
+from asvtwin.control.backends.ocp import OcpSpec
+from asvtwin.control.certification import TERM_TOL, Certifier
 from asvtwin.control.colreg import EncounterLimits, classify_encounters
 from asvtwin.control.explain import describe_cause, describe_change, describe_obstacle
-from asvtwin.control.fallback import BackupPlan, Candidate, Fallback, candidate_inputs, damp_yaw
-from asvtwin.control.kernels import certify, rollout, warm_up
-from asvtwin.control.obstacles import CoastSegments, Obstacles, obstacle_labels, stage_circles
+from asvtwin.control.fallback import (
+    BackupPlan,
+    Candidate,
+    Fallback,
+    Scored,
+    candidate_inputs,
+    damp_yaw,
+    select_candidate,
+)
+from asvtwin.control.kernels import rollout, warm_up
+from asvtwin.control.obstacles import Obstacles, obstacle_labels, stage_circles
 from asvtwin.control.result import (
     CS2_LENGTH_M,
     ActiveConstraint,
@@ -44,6 +53,7 @@ from asvtwin.control.result import (
     PsfConfig,
     ResolvedPsfConfig,
 )
+from asvtwin.control.slots import SolverSlots
 from asvtwin.control.terminal_set import TerminalSet, compute_terminal_set
 from asvtwin.errors import ConfigError, SolverError, StateError
 from asvtwin.vessel.params import VesselParams
@@ -51,7 +61,7 @@ from asvtwin.vessel.params import VesselParams
 __all__ = ["ActiveConstraint", "FilterResult", "PsfConfig", "SafetyFilter"]
 
 log = logging.getLogger(__name__)
-_TERM_TOL = 0.05  # terminal ellipsoid tolerance of the certification (5 %)
+_COMFORT_TOL = 0.05  # a plan within 5 % of the yaw-rate bound ν_max,r counts as within it
 
 
 class SafetyFilter:
@@ -131,9 +141,9 @@ class SafetyFilter:
         N, s = cfg.N, self.spec
         self._coef = np.ascontiguousarray(params.packed())  # the planning model's
         self._zero3 = np.zeros(3)
-        self._clear = np.full(N + 1, self.d_safe_m)
-        self._clear[N] += self.d_f_m  # eq. (f)
-        self._P_f = np.ascontiguousarray(self.terminal_set.P_f)
+        self._cert = Certifier(N, self.d_safe_m, self.d_f_m, self.certify_tol_m,
+                               self.terminal_set.P_f, float(self.u_range[0]))
+        self._P_f = self._cert.P_f
         warm_up()
         self.braking_time_s = self._braking_time()
         horizon = N * cfg.dt_s
@@ -144,26 +154,14 @@ class SafetyFilter:
                 f"terminal set ({self.braking_time_s:.1f} s): no plan could end safe; raise N "
                 f"or dt_s (default dt_s for this hull: {0.5 * sq:.2f} s)")
         self.backend = self._make_backend(cfg)
-        far = DUMMY_DISTANCE_FACTOR * params.length
-        self._P = np.zeros((N + 1, s.n_p))  # stage parameters, rewritten every call
-        # the solver plans with the certification tolerance as margin (eq. (e)/(f))
-        self._P[:, 3] = self._clear + self.certify_tol_m
-        self._circ = self._P[:, 4: 4 + 3 * s.n_circles].reshape(N + 1, s.n_circles, 3)
-        if not np.shares_memory(self._circ, self._P):  # pragma: no cover - numpy layout
-            raise AssertionError("the circle slots must be a view of the stage parameters")
-        self._dummy_circle = np.stack([np.full(s.n_circles, far),
-                                       far * (1 + 0.01 * np.arange(s.n_circles))], axis=1)
-        self._dummy_segment = np.array([-far, -far, -far, -far + 1.0])
+        self._slots = SolverSlots(s, params.length, self._cert)
         self._vel_tol = 0.01 * self.nu_max
         self._limits = EncounterLimits.for_length(params.length)
         self._plan: BackupPlan | None = None
         self._last: tuple[float, _F8, _F8] | None = None  # (t, x_pred, u_pred)
         self._solved_last = False  # the previous call ran the solver
         self._t: float | None = None
-        self._dropped_logged = False
-        # columns of static obstacles and coast segments in the certified margins (per call)
-        self._static_cols: NDArray[np.bool_] | None = None
-        self._credit_factor = 1.0  # share of the braking credit d̂ leaves (per call)
+        self._prefer_starboard = False  # COLREG expects starboard (per call)
 
     def _make_backend(self, cfg: PsfConfig) -> Backend:
         name = cfg.backend if cfg.backend != "auto" else available_backends()[0]
@@ -224,123 +222,19 @@ class SafetyFilter:
         with backend_lock(self.backend):
             self.backend.reset()
 
-    def _stage_params(self, x: _F8, d_hat: _F8, centres: _F8, radii: _F8, segs: _F8,
-                      paths: list[_F8]) -> tuple[_F8, NDArray[np.intp], NDArray[np.intp]]:
-        """Stage parameters (N+1, n_p) (an internal buffer: backends copy it) and the
-        indices of the circles and segments that got a slot: those that come nearest to
-        the predicted ``paths`` (each (N+1, 2)), stage by stage for moving circles."""
-        s = self.spec
-        m, k = centres.shape[1], segs.shape[0]
-        ci = np.arange(m)
-        if m > s.n_circles:
-            gap = np.min([np.linalg.norm(centres - p[:, None, :], axis=2) for p in paths],
-                         axis=0) - radii
-            ci = np.sort(np.argsort(gap.min(axis=0))[: s.n_circles])
-        si = np.arange(k)
-        if k > s.n_segments:
-            pts = np.concatenate([p[::2] for p in paths] + [x[None, :2]])
-            dist = CoastSegments(segs).distances(pts).min(axis=0)
-            si = np.sort(np.argsort(dist)[: s.n_segments])
-        if (m > s.n_circles or k > s.n_segments) and not self._dropped_logged:
-            log.info("safety filter: %d circles / %d segments given, the %d / %d nearest to "
-                     "the predicted path go to the solver, all are certified", m, k,
-                     s.n_circles, s.n_segments)
-            self._dropped_logged = True
-        P = self._P  # column 3 (clearance, eq. (e)/(f)) is constant
-        P[:, 0:3] = d_hat
-        nc, used = s.n_circles, len(ci)
-        circ = self._circ  # a view of P's circle slots
-        if used < nc:  # far-away dummies in the unused slots
-            circ[:, used:, 0:2] = self._dummy_circle[used:] + x[:2]
-            circ[:, used:, 2] = self.params.length
-        if used:
-            sel = slice(None) if m <= nc else ci
-            circ[:, :used, 0:2] = centres[:, sel]
-            circ[:, :used, 2] = radii[:, sel]
-        if s.n_segments:
-            sg = np.empty((s.n_segments, 4))
-            sg[len(si):] = self._dummy_segment + x[[0, 1, 0, 1]]
-            sg[: len(si)] = segs[si]
-            P[:, 4 + 3 * nc:] = sg.ravel()
-        return P, ci, si
-
-    def _certify(self, X: _F8, centres: _F8, radii: _F8, segs: _F8,
-                 ) -> tuple[_F8, float, float, bool]:
-        """Per-stage obstacle margins (N+1, m + k) [m] against the required clearance
-        (d_safe; d_safe + d_f √V_N at N for static ones, eq. (e)/(f)), their minimum over stages 1..N (+inf
-        without obstacles, NaN when a margin is NaN), the terminal margin
-        1 − ν_Nᵀ P_f ν_N (eq. (g)) and whether every state is finite."""
-        out = np.empty((X.shape[0], centres.shape[1] + segs.shape[0]))
-        low, term, finite = certify(X, np.ascontiguousarray(centres),
-                                    np.ascontiguousarray(radii), np.ascontiguousarray(segs),
-                                    self._clear, self._P_f, out)
-        # Eq. (f) asks d_f, the braking distance from the *edge* of the terminal set. From
-        # ν_N inside it the braking backup travels at most d_f √V_N (V = νᵀP_fν decays at
-        # rate 2α and ‖(u, v)‖ ≤ α d_f √V, see terminal_set): a plan that ends slow needs
-        # only that much beyond d_safe. Static obstacles and the coast get the credit
-        # d_f (1 − √V_N) at stage N (none when V_N ≥ 1: eq. (f) as is); moving ones already
-        # ask d_safe only there. Without this a full-scale ship (d_f = 527 m) within
-        # d_safe + d_f of a harbour's shore had no certifiable plan even when stopping.
-        static = self._static_cols
-        if finite and out.shape[1] and static is not None and static.any():
-            V = 1.0 - float(term)
-            credit = self._credit_factor * self.d_f_m * (1.0 - math.sqrt(min(max(V, 0.0),
-                                                                              1.0)))
-            out[-1, static] += credit
-            if out.shape[0] > 1:
-                low = float(np.min(out[1:]))
-        return out, float(low), float(term), bool(finite)
-
-    def _terminal_clearance(self, margins: _F8, term: float) -> _F8:
-        """Stage N's distance to each obstacle minus d_safe (and its radius) [m]: the
-        certified margin with its terminal requirement (d_f √V_N for static obstacles and
-        the coast, nothing more for moving ones) added back."""
-        static = self._static_cols
-        if static is None or static.shape[0] != margins.shape[1]:
-            return margins[-1] + self.d_f_m
-        full = self.d_f_m * math.sqrt(min(max(1.0 - float(term), 0.0), 1.0))
-        back = self.d_f_m - self._credit_factor * (self.d_f_m - full)
-        return margins[-1] + np.where(static, back, 0.0)
-
-    def _judge(self, margins: _F8, low: float, term: float, finite: bool, m0: _F8,
-               strict: bool = False) -> tuple[bool, str, float]:
-        """Is a re-simulated plan certified? Returns (certified, reason if not, closest
-        approach margin over stages 1..N against d_safe alone [m]).
-
-        Normal rule: every margin ≥ −tol (≥ 0 when ``strict``), terminal ellipsoid within
-        5 %. Recovery rule (some stage-0 margin ``m0`` < 0): no obstacle's margin falls
-        below min(its stage-0 margin, 0) − tol, and every margin is restored by stage N.
-        """
-        if not finite or math.isnan(low):
-            return False, "plan is not finite (NaN/inf states)", -math.inf
-        if margins.shape[1] == 0:
-            path_low = math.inf
-        else:
-            path_low = min(float(margins[1:-1].min()) if margins.shape[0] > 2 else math.inf,
-                           float(self._terminal_clearance(margins, term).min()))
-        tol = 0.0 if strict else self.certify_tol_m
-        if m0.size and m0.min() < 0:  # recovery
-            floor = np.minimum(m0, 0.0) - tol
-            ok = bool(np.all(margins[1:] >= floor)) and bool(np.all(margins[-1] >= -tol))
-        else:
-            ok = low >= -tol
-        if not ok:
-            return False, (f"plan violates obstacle clearance (closest {path_low:+.2f} m "
-                           "against d_safe)"), path_low
-        if term < -_TERM_TOL:
-            return False, "plan ends outside the terminal set", path_low
-        return True, "", path_low
-
-    def _colreg_guess(self, x: _F8, u_L: _F8, centres: _F8, moving: NDArray[np.bool_],
-                      ) -> _F8 | None:
-        """A starboard-turn input guess when a head-on or crossing vessel asks for one."""
+    def _starboard_expected(self, x: _F8, centres: _F8, moving: NDArray[np.bool_]) -> bool:
+        """Does a moving obstacle (classified from its predicted track) make COLREG
+        expect an alteration to starboard: head-on (rule 14), crossing from starboard
+        (15) or from port (17(c): not to port)?"""
         if not (self.config.colreg and moving.any()) or centres.shape[0] < 2:
-            return None
+            return False
         idx = np.flatnonzero(moving)
         v = (centres[1, idx] - centres[0, idx]) / self.config.dt_s
         enc = classify_encounters(x, centres[0, idx], v, limits=self._limits)
-        if not enc.starboard_expected.any():
-            return None
+        return bool(enc.starboard_expected.any())
+
+    def _colreg_guess(self, u_L: _F8) -> _F8:
+        """A starboard-turn input guess (for a head-on or crossing vessel)."""
         N = self.config.N
         U = np.zeros((N, 3))
         U[:, 0] = u_L[0]
@@ -390,15 +284,8 @@ class SafetyFilter:
                          f"[{self.u_lb.tolist()}, {self.u_ub.tolist()}], clipped")
         centres, radii, segs = stage_circles(obstacles, N)
         labels, moving = obstacle_labels(obstacles)
-        self._static_cols = np.concatenate([~moving, np.ones(segs.shape[0], dtype=bool)])
-        # The braking credit below holds for the nominal model: a disturbance that keeps
-        # pushing the stopped ship (a current, wind) voids it. It fades out linearly as the
-        # estimated planar force d̂ grows to 10 % of the surge thrust range (measured: with
-        # the full credit under a 0.085 m/s current, 4 of 10 model-scale runs onto a coast
-        # ended inside d_safe; without it 1 of 10).
-        d_planar = math.hypot(float(d[0]), float(d[1]))
-        self._credit_factor = min(max(1.0 - d_planar / (0.1 * float(self.u_range[0])), 0.0),
-                                  1.0)
+        # static columns, and the braking credit (fading with the disturbance estimate)
+        self._cert.start_call(moving, segs.shape[0], d)
         if moving.any():
             # eq. (f) asks d_safe + d_f at stage N so that braking stops short of a *static*
             # obstacle; a vessel's motion beyond the horizon is unknown, and keeping d_f
@@ -409,9 +296,9 @@ class SafetyFilter:
         first = None
         for U in tries:
             X = self.rollout(x, U, d)
-            margins, low, term, finite = self._certify(X, centres, radii, segs)
+            margins, low, term, finite = self._cert.margins(X, centres, radii, segs)
             m0 = margins[0]
-            ok, why, path_low = self._judge(margins, low, term, finite, m0, strict=True)
+            ok, why, path_low = self._cert.judge(margins, low, term, finite, m0, strict=True)
             if first is None:
                 first = (X, margins, term, why)
             if ok:
@@ -426,11 +313,13 @@ class SafetyFilter:
         m0 = margins_L[0]
         # 2. the OCP, warm-started from the last solver plan (COLREG: from a starboard turn)
         xg, ug = self._guess(x, uL, d, t_s)
-        sb = self._colreg_guess(x, uL, centres, moving)
-        if sb is not None and ug[: max(1, N // 3), 2].sum() <= 0:
-            cand = Candidate(Fallback.TURN_STARBOARD, "colreg", sb, max(1, N // 3))
+        self._prefer_starboard = self._starboard_expected(x, centres, moving)
+        if self._prefer_starboard and ug[: max(1, N // 3), 2].sum() <= 0:
+            cand = Candidate(Fallback.TURN_STARBOARD, "colreg", self._colreg_guess(uL),
+                             max(1, N // 3))
             xg, ug = self._simulate(x, cand, d)
-        P, _, _ = self._stage_params(x, d, centres, radii, segs, [X_L[:, :2], xg[:, :2]])
+        P, _, _ = self._slots.fill(x, d, centres, radii, segs, [X_L[:, :2], xg[:, :2]],
+                                     xg[-1, 3:], moving)
         # warm: 1 solve; after calls that kept u_L without a solve the iterate is stale: 2;
         # cold (no plan at all): cold_start_solves (RTI: one QP each)
         attempts = (1 if self._solved_last else min(2, cfg.cold_start_solves)
@@ -442,6 +331,7 @@ class SafetyFilter:
         chosen_kind, chosen_detail = Fallback.NONE, ""
         for rnd in range(1 + cfg.uncertified_retries):
             for _ in range(attempts):
+                self._slots.set_terminal(xg[-1, 3:])  # stage N as the guess ends
                 try:
                     with backend_lock(self.backend):  # shared per process: one at a time
                         raw = self.backend.solve(x, uL, P, xg, ug)
@@ -453,8 +343,8 @@ class SafetyFilter:
                     U, status, ok = ug, f"solver error: {type(exc).__name__}: {exc}", False
                     raw = None
                 X = self.rollout(x, U, d)  # certify on the model, not on the solver's claim
-                margins, low, term, finite = self._certify(X, centres, radii, segs)
-                cert, why, path_low = self._judge(margins, low, term, finite, m0)
+                margins, low, term, finite = self._cert.margins(X, centres, radii, segs)
+                cert, why, path_low = self._cert.judge(margins, low, term, finite, m0)
                 if not ok:
                     cert, why = False, f"solver failed ({status})"
                 if raw is not None and ok and np.isfinite(raw.x).all():
@@ -474,7 +364,7 @@ class SafetyFilter:
             pick, scored = self._choose(x, uL, t_s, d, centres, radii, segs, m0, solver_u,
                                         rows)
             chosen_kind, chosen_detail = pick[0], pick[1]
-            best = pick[2:]
+            best = tuple(pick[2:9])
             if solver_u is None or (solver_low < 0 <= best[6]):
                 # the solver is in a bad basin (its plan cuts into d_safe, or failed):
                 # re-initialise it from the best candidate; otherwise let SQP continue
@@ -522,11 +412,11 @@ class SafetyFilter:
 
     def _choose(self, x: _F8, uL: _F8, t_s: float, d: _F8, centres: _F8, radii: _F8,
                 segs: _F8, m0: _F8, solver_u: _F8 | None, rows: list) -> tuple[tuple, list]:
-        """Score every candidate; the certified one nearest u_L (W-norm), else the one
-        with the largest closest approach. Returns (kind, detail, X, U, margins, term,
-        certified, why, closest) and the scores (kind, detail, closest [m], certified).
-        ``rows`` holds the candidates scored earlier in this call (a retry adds only its
-        new solver plan)."""
+        """Score every candidate and pick one (:func:`~asvtwin.control.fallback.
+        select_candidate`). Returns (kind, detail, X, U, margins, term, certified, why,
+        closest) and the scores (kind, detail, closest [m], certified). ``rows`` holds
+        the candidates scored earlier in this call (a retry adds only its new solver
+        plan)."""
         if rows:
             cands = [Candidate(Fallback.SOLVER_PLAN, "best effort after retry",
                                np.clip(solver_u, self.u_lb, self.u_ub), self.config.N)
@@ -536,31 +426,15 @@ class SafetyFilter:
                                      solver_u)
         for c in cands:
             X, U = self._simulate(x, c, d)
-            margins, low, term, finite = self._certify(X, centres, radii, segs)
-            cert, why, path_low = self._judge(margins, low, term, finite, m0)
+            margins, low, term, finite = self._cert.margins(X, centres, radii, segs)
+            cert, why, path_low = self._cert.judge(margins, low, term, finite, m0)
             dist = float(np.sum(self._W * (U[0] - uL) ** 2))
-            rows.append((c.kind, c.detail, X, U, margins, term, cert, why, path_low, dist))
-        certified = [r for r in rows if r[6]]
-        if certified:
-            pick = min(certified, key=lambda r: r[9])
-        elif m0.size and m0.min() < 0:  # inside d_safe: out by the end, no closer on the way
-            floor = np.minimum(m0, 0.0) - self.certify_tol_m
-
-            def out_score(r: tuple) -> tuple:
-                # first a plan that gets out without closing in, then the one that ends
-                # furthest out (staying put does not decrease a margin but never leaves)
-                mg = r[4]
-                end = (float(self._terminal_clearance(mg, r[5]).min()) if mg.shape[1]
-                       else 0.0)
-                leaves = end >= -self.certify_tol_m
-                return (leaves and bool(np.all(mg[1:-1] >= floor)), end, r[8])
-
-            pick = max(rows, key=out_score)
-        else:
-            pick = max(rows, key=lambda r: (r[8] if math.isfinite(r[8]) else -1e300, r[5]))
-        scores = sorted(((r[0].value, r[1], round(float(r[8] + self.d_safe_m), 4),
-                          bool(r[6])) for r in rows), key=lambda q: -q[2])
-        return pick[:9], scores
+            rows.append(Scored(c.kind, c.detail, X, U, margins, term, cert, why, path_low,
+                               dist))
+        return select_candidate(
+            rows, x, m0, self._cert, length_m=self.params.length,
+            r_comfort=float(self.nu_max[2]) * (1.0 + _COMFORT_TOL),
+            prefer_starboard=self._prefer_starboard)
 
     def _guess(self, x: _F8, u_L: _F8, d: _F8, t_s: float) -> tuple[_F8, _F8]:
         """Primal guess: the last plan shifted to ``t_s`` (its last stage repeated), or a
@@ -638,7 +512,7 @@ class SafetyFilter:
                 words.append("no intervention; no obstacle known")
         else:
             words.append(describe_cause(x, margins_L, term_L, labels, moving, centres, radii,
-                                        segs, dt, self.d_safe_m, self.d_f_m, _TERM_TOL))
+                                        segs, dt, self.d_safe_m, self.d_f_m, TERM_TOL))
             words.append(describe_change(uL, u0, self.u_lb, self.u_ub))
         if fb is not Fallback.NONE:
             best_alt = ", ".join(f"{k} {c:.1f} m" for k, _, c, _ in scored[:4])

@@ -1,0 +1,171 @@
+"""COLREG side of the fallbacks, the comfort yaw-rate bound of the filter's own turns,
+stage N's requirement given to the solver, and open water after an encounter."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from asvtwin.control import MovingObstacles, PsfConfig, SafetyFilter, available_backends
+from asvtwin.control.certification import Certifier
+from asvtwin.control.encounters import OPEN_WATER_L, encounter_cases, run_encounter
+from asvtwin.control.fallback import Fallback, Scored, plan_side, select_candidate
+from asvtwin.vessel import cybership2, cybership2_full_scale
+
+
+def _arc(psi0: float, r: float, n: int = 30, dt: float = 0.5, u: float = 0.3) -> np.ndarray:
+    """States of a constant-rate turn (exact kinematics, independent of the model)."""
+    X = np.zeros((n + 1, 6))
+    for k in range(1, n + 1):
+        psi = psi0 + r * k * dt
+        X[k, 2] = psi
+        X[k, 0] = X[k - 1, 0] + u * dt * math.cos(psi)
+        X[k, 1] = X[k - 1, 1] + u * dt * math.sin(psi)
+    X[0, 2] = psi0
+    X[:, 3], X[:, 5] = u, r
+    return X
+
+
+@pytest.mark.parametrize("psi0", [0.0, 1.2, -2.5])
+def test_plan_side_is_measured_across_the_initial_heading(psi0):
+    assert plan_side(_arc(psi0, +0.1), 1.255) == 1  # r > 0 turns to starboard (NED)
+    assert plan_side(_arc(psi0, -0.1), 1.255) == -1
+    assert plan_side(_arc(psi0, 0.0), 1.255) == 0
+    assert plan_side(_arc(psi0, +0.001), 1.255) == 0  # within a quarter length
+
+
+class _Failing:
+    """A backend that always fails: every call ends in the scored fallback."""
+
+    def __init__(self, inner):
+        self.name, self.spec = inner.name, inner.spec
+
+    def solve(self, *a):
+        raise RuntimeError("QP failed (test)")
+
+    def reset(self):
+        pass
+
+
+class _Spy:
+    """A backend that records the stage parameters it is given."""
+
+    def __init__(self, inner):
+        self.inner, self.name, self.spec, self.P = inner, inner.name, inner.spec, []
+
+    def solve(self, x0, u_L, P, xg, ug):
+        self.P.append((P.copy(), xg.copy()))
+        return self.inner.solve(x0, u_L, P, xg, ug)
+
+    def reset(self):
+        self.inner.reset()
+
+
+def _head_on(psf, offset_east):
+    """A vessel 9 ship lengths ahead on the reciprocal course, ``offset_east`` [L] to
+    starboard, at the own speed (0.3 m/s at model scale)."""
+    L, sq = psf.params.length, math.sqrt(psf.params.length / 1.255)
+    v = 0.3 * sq
+    x = np.array([0.0, 0.0, 0.0, v, 0.0, 0.0])
+    tgt = MovingObstacles.constant_velocity([[9.0 * L, offset_east * L]], [[-v, 0.0]],
+                                            [0.5 * L], N=psf.config.N,
+                                            dt_s=psf.config.dt_s, ids=[7])
+    return x, tgt
+
+
+@pytest.mark.parametrize("hull", [cybership2, cybership2_full_scale])
+def test_head_on_fallback_goes_to_starboard_when_port_is_only_slightly_better(hull):
+    p = hull()
+    psf = SafetyFilter(p, config=PsfConfig(backend=available_backends()[0]))
+    x, tgt = _head_on(psf, offset_east=0.3)  # slightly to starboard: port looks roomier
+    psf.backend = _Failing(psf.backend)
+    res = psf.filter(x, [0.3 * float(psf.u_ub[0]), 0.0, 0.0], tgt, t_s=0.0)
+    assert res.fallback != "none"
+    assert plan_side(res.x_pred, p.length) == 1, res.explanation
+    if any(c[3] for c in res.candidates):  # a certified starboard plan was available
+        assert "not certified" not in res.explanation, res.explanation
+    else:  # a comparable closest approach: within 10 % of d_safe of the best candidate
+        best = max(c[2] for c in res.candidates)
+        chosen = min(res.obstacle_margin_m[1:-1]) + psf.d_safe_m
+        assert chosen >= best - 0.1 * psf.d_safe_m - 1e-9, (chosen, best)
+    # without the preference the roomier port side wins (the test can tell them apart)
+    ports = [c for c in res.candidates if c[0] == "turn_port"]
+    assert ports and max(c[2] for c in ports) > min(res.obstacle_margin_m[1:-1]) + psf.d_safe_m
+
+
+def _row(kind, side, closest, certified=False, dist=1.0, r=0.1):
+    """A scored candidate whose plan turns at ``side`` · r [rad/s] (exact arc)."""
+    X = _arc(0.0, side * r)
+    return Scored(kind, f"{kind} test", X, np.zeros((30, 3)), np.zeros((31, 1)), 0.5,
+                  certified, "", closest, dist)
+
+
+def _select(rows, prefer, m0=None):
+    cert = Certifier(30, 1.255, 7.53, 0.0251, np.eye(3), 2.0)
+    return select_candidate(rows, np.zeros(6), np.zeros(1) if m0 is None else m0, cert,
+                            length_m=1.255, r_comfort=0.1575, prefer_starboard=prefer)[0]
+
+
+def test_selection_prefers_starboard_only_when_the_margin_is_comparable():
+    port, stb = Fallback.TURN_PORT, Fallback.TURN_STARBOARD
+    near = [_row(port, -1, 1.00), _row(stb, +1, 0.90), _row(Fallback.BRAKING, 0, 0.2, r=0)]
+    assert _select(near, prefer=False).kind is port  # the roomier side
+    pick = _select(near, prefer=True)
+    assert pick.kind is stb and "starboard preferred (COLREG)" in pick.detail
+    assert "0.10 m further off" in pick.detail
+    far = [_row(port, -1, 1.00), _row(stb, +1, 0.80)]  # 0.2 m > 10 % of d_safe
+    assert _select(far, prefer=True).kind is port
+    edge = [_row(port, -1, 0.05), _row(stb, +1, -0.05)]  # never into d_safe for COLREG
+    assert _select(edge, prefer=True).kind is port
+
+
+def test_selection_among_certified_candidates_colreg_then_comfort_then_least_change():
+    port, stb = Fallback.TURN_PORT, Fallback.TURN_STARBOARD
+    rows = [_row(port, -1, 0.5, True, dist=0.1), _row(stb, +1, 0.5, True, dist=0.4)]
+    assert _select(rows, prefer=False).kind is port  # least change
+    assert _select(rows, prefer=True).kind is stb
+    # same side: a plan within the yaw-rate bound wins over a nearer brisk one
+    brisk = _row(stb, +1, 0.5, True, dist=0.1, r=0.3)
+    calm = _row(stb, +1, 0.5, True, dist=0.3, r=0.1)
+    assert _select([brisk, calm], prefer=True) is calm
+    assert _select([brisk, calm], prefer=True).X[1:, 5].max() <= 0.1575
+
+
+@pytest.mark.parametrize("hull", [cybership2, cybership2_full_scale])
+def test_stage_n_asks_the_solver_what_certification_asks(hull):
+    from asvtwin.control import CircleObstacles
+
+    p = hull()
+    psf = SafetyFilter(p, config=PsfConfig(backend="casadi-ipopt", max_iter=5))
+    L = p.length
+    spy = _Spy(psf.backend)
+    psf.backend = spy
+    x, tgt = _head_on(psf, offset_east=0.0)
+    rock = CircleObstacles([[6.0 * L, -2.0 * L]], [0.5 * L])
+    psf.filter(x, [float(psf.u_ub[0]), 0.0, 0.0], [rock, tgt], t_s=0.0)
+    assert spy.P
+    P_f = psf.terminal_set.P_f
+    for P, xg in spy.P:
+        nu = xg[-1, 3:]
+        root = math.sqrt(min(float(nu @ P_f @ nu), 1.0))
+        extra = psf.d_f_m * root  # no disturbance: the full braking credit
+        assert P[-1, 3] == pytest.approx(psf.d_safe_m + extra + psf.certify_tol_m)
+        assert P[0, 3] == pytest.approx(psf.d_safe_m + psf.certify_tol_m)
+        # the rock (slot 0) keeps its radius; the vessel (slot 1) asks d_safe only at N
+        assert P[-1, 4 + 2] == pytest.approx(0.5 * L)
+        assert P[-1, 4 + 3 + 2] == pytest.approx(0.5 * L - extra)
+
+
+@pytest.mark.parametrize("hull", [cybership2, cybership2_full_scale])
+def test_open_water_after_an_encounter_is_left_to_the_learner(hull):
+    p = hull()
+    psf = SafetyFilter(p, config=PsfConfig(backend=available_backends()[0]))
+    case = next(c for c in encounter_cases(include=("open_water",)))
+    r = run_encounter(case, p, psf)
+    assert r.collisions == 0 and r.goal_reached, r.to_dict()
+    assert r.open_water_calls >= 400, r.open_water_calls  # most of the 130 m route
+    # nothing within OPEN_WATER_L ship lengths: the filter does not touch u_L
+    assert r.open_water_interventions == 0, (r.open_water_interventions, OPEN_WATER_L)
+    assert r.starboard is True  # the head-on part: rule 14
