@@ -92,18 +92,22 @@ class SnapshotFeed(Protocol):
 
 
 class _EncodedCache:
-    """Encode each snapshot once, whichever client asks first (keyed by ``seq``)."""
+    """Encode each snapshot once, whichever client asks first. Keyed by the snapshot
+    object, not its ``seq``: a paused twin republishes its state (a control applied, the
+    paused clock) under the same ``seq`` and time, and that snapshot must reach clients."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._frame: Frame | None = None
+        self._snap: Snapshot | None = None
 
     def get(self, snap: Snapshot | None) -> Frame | None:
         if snap is None:
             return None
         with self._lock:
-            if self._frame is None or self._frame.seq != snap.seq:
+            if self._frame is None or self._snap is not snap:
                 self._frame = Frame(snap.seq, float(snap.t_s), encode(snap), tuple(snap.events))
+                self._snap = snap
             return self._frame
 
     def get_encoded(self, snap: Snapshot, data: bytes) -> Frame:

@@ -75,8 +75,6 @@ class Hub:
 
     # ------------------------------------------------------------- producer
     async def _produce(self) -> None:
-        last_seq: int | None = None
-        last_t: float | None = None
         while True:
             t0 = time.perf_counter()
             try:
@@ -86,8 +84,9 @@ class Hub:
                 if self.counters["feed_errors"] == 1:
                     log.exception("the feed failed to give a frame")
                 fr = None
-            if fr is not None and (fr.seq != last_seq or fr.t_s != last_t):
-                last_seq, last_t = fr.seq, fr.t_s
+            # a new Frame object is a new snapshot (feeds cache one Frame per snapshot),
+            # also when a paused twin republishes under the same seq and time
+            if fr is not None and fr is not self.last_frame:
                 self.last_frame = fr
                 self.counters["frames"] += 1
                 for c in self.clients:

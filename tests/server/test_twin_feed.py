@@ -95,6 +95,51 @@ def test_live_twin_streams_and_obeys_controls(live):
     assert r.status_code == 409 and "speed_kn" in r.json()["error"]
 
 
+def _ws_snapshot(ws, timeout_s: float = 30.0) -> dict:
+    """The next snapshot (binary message) on ``ws``, skipping text messages."""
+    end = time.monotonic() + timeout_s
+    while True:
+        msg = ws.recv(timeout=max(0.1, end - time.monotonic()))
+        if isinstance(msg, bytes):
+            return decode(msg)
+
+
+def test_a_client_connecting_to_a_paused_twin_gets_its_latest_snapshot(live):
+    """Paused, the twin ticks no more; a viewer that connects then still gets the twin's
+    latest snapshot at once (with the paused clock), and a control applied while paused
+    reaches the connected clients although seq and time stand still."""
+    from websockets.sync.client import connect
+
+    srv, twin = live
+    httpx.post(srv.url + "api/control/pause", json={}).raise_for_status()
+    try:
+        def still() -> bool:
+            k = twin.tick
+            time.sleep(0.5)
+            return twin.tick == k
+        wait_for(still)
+        tick = twin.tick
+        url = srv.url.replace("http", "ws") + "ws?rate_hz=10"
+        with connect(url, max_size=None, open_timeout=30) as ws:
+            s = _ws_snapshot(ws)
+            latest = twin.latest()
+            assert s["seq"] == latest.seq and s["t_s"] == pytest.approx(latest.t_s)
+            assert s["clock"]["paused"] is True
+            assert twin.tick == tick  # nothing ticked to make that snapshot
+            enabled = s["filter"]["enabled"]
+            httpx.post(srv.url + "api/control/filter", json={"enabled": not enabled}
+                       ).raise_for_status()
+            s2 = wait_for(lambda: (x := _ws_snapshot(ws)) and x["filter"]["enabled"] is not enabled
+                          and x)
+            assert s2["seq"] == s["seq"] and s2["t_s"] == s["t_s"]  # still paused
+            httpx.post(srv.url + "api/control/filter", json={"enabled": enabled}
+                       ).raise_for_status()
+            wait_for(lambda: _ws_snapshot(ws)["filter"]["enabled"] is enabled)
+        assert twin.tick == tick
+    finally:
+        httpx.post(srv.url + "api/control/resume", json={}).raise_for_status()
+
+
 def test_live_twin_keeps_its_tick_rate_with_twenty_clients(live):
     srv, twin = live
     nominal = 1.0 / twin.dt_s  # speed 1: real time
