@@ -46,6 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the draws (default: 0)")
     p.add_argument("--workers", type=positive_int, default=1, metavar="K",
                    help="processes to split the rollouts over (default: %(default)s)")
+    p.add_argument("--ray", metavar="ADDRESS", default=None,
+                   help="split the rollouts over Ray tasks: 'local' starts a local Ray "
+                        "with --workers CPUs, else an existing cluster's address")
     p.add_argument("--full-rate", action="store_true",
                    help="call the safety filter at the twin's full rate in every future "
                         "(no economy; slow)")
@@ -115,7 +118,16 @@ def whatif(args: argparse.Namespace) -> int:
     alts = [parse_alternative(s) for s in args.alt] if args.alt else None
     f, land, params = fork_source(args.source, args.at)
     cfg = RolloutConfig(horizon_s=args.horizon, economy=not args.full_rate)
-    if args.workers > 1:
+    if args.ray:
+        from asvtwin.whatif import RayExecutor
+
+        rex = RayExecutor(args.ray, num_cpus=args.workers)
+        try:
+            ans = ask(f, alts, rollouts=args.rollouts, seed=args.seed, config=cfg, land=land,
+                      params=params, executor=rex, workers=max(2, args.workers))
+        finally:
+            rex.shutdown()
+    elif args.workers > 1:
         from concurrent.futures import ProcessPoolExecutor
 
         with ProcessPoolExecutor(args.workers) as ex:

@@ -14,7 +14,7 @@ from asvtwin.whatif.alternatives import (
     default_alternatives,
     parse_alternative,
 )
-from asvtwin.whatif.ask import WhatIfAnswer, ask, warm_up
+from asvtwin.whatif.ask import RayExecutor, WhatIfAnswer, ask, warm_up
 from asvtwin.whatif.fork import Fork, fork, fork_scenario
 from asvtwin.whatif.risk import (
     AlternativeRisk,
@@ -33,6 +33,7 @@ __all__ = [
     "AlternativeRisk",
     "Encounter",
     "Fork",
+    "RayExecutor",
     "Recommendation",
     "RolloutConfig",
     "RolloutResult",

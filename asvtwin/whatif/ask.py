@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from asvtwin.errors import ParameterError
+from asvtwin.errors import MissingExtraError, ParameterError
 from asvtwin.geo import LandMask
 from asvtwin.vessel import VesselParams
 from asvtwin.whatif.alternatives import Alternative, default_alternatives
@@ -31,7 +31,7 @@ from asvtwin.whatif.risk import (
 )
 from asvtwin.whatif.rollout import RolloutConfig, RolloutResult, draw_samples, simulate
 
-__all__ = ["WhatIfAnswer", "ask", "warm_up"]
+__all__ = ["RayExecutor", "WhatIfAnswer", "ask", "warm_up"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,8 +76,56 @@ class WhatIfAnswer:
         return d
 
 
-def _chunks(n: int, k: int) -> list[slice]:
-    edges = np.linspace(0, n, k + 1).round().astype(int)
+class RayExecutor(Executor):
+    """A :class:`concurrent.futures.Executor` of Ray tasks, for :func:`ask`'s ``executor``.
+
+    ``address``: ``"local"`` starts a local Ray with ``num_cpus`` CPUs (stopped again by
+    :meth:`shutdown`), anything else is an existing cluster's address. Each submitted call
+    is one Ray task; its result comes back as a ``concurrent.futures.Future``. The draws
+    are made by :func:`ask` in the calling process, so the answer is the same as on a
+    process pool for the same seed.
+
+    Raises
+    ------
+    MissingExtraError
+        Ray is not installed (``pip install 'asvtwin[ray]'``).
+    """
+
+    def __init__(self, address: str = "local", *, num_cpus: int = 2) -> None:
+        import os
+
+        os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+        try:
+            import ray
+        except ImportError as exc:
+            raise MissingExtraError("ray", "ray") from exc
+        self._ray = ray
+        self._started = False
+        if not ray.is_initialized():
+            if address == "local":
+                ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False)
+            else:
+                ray.init(address=address, log_to_driver=False)
+            self._started = True
+        self._remote: dict[Any, Any] = {}
+
+    def submit(self, fn: Any, /, *args: Any, **kwargs: Any) -> Any:
+        remote = self._remote.get(fn)
+        if remote is None:
+            remote = self._remote[fn] = self._ray.remote(fn)
+        return remote.remote(*args, **kwargs).future()
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        if self._started and self._ray.is_initialized():
+            self._ray.shutdown()
+        self._started = False
+
+
+def _chunks(n: int, k: int, align: int = 1) -> list[slice]:
+    """``k`` contiguous slices of ``range(n)`` with inner edges on multiples of ``align``."""
+    edges = (np.linspace(0, n, k + 1) / align).round().astype(int) * align
+    edges[-1] = n
+    edges = np.unique(np.clip(edges, 0, n))
     return [slice(int(a), int(b)) for a, b in itertools.pairwise(edges) if b > a]
 
 
@@ -133,7 +181,8 @@ def ask(fork: Fork, alternatives: Sequence[Alternative] | None = None, *, rollou
         res = simulate(fork, alts, samples, config=cfg, land=land, params=params)
     else:
         futs = [executor.submit(simulate, fork, alts, samples.take(sl), config=cfg, land=land,
-                                params=params) for sl in _chunks(rollouts, workers)]
+                                params=params)
+                for sl in _chunks(rollouts, workers, cfg.share_group)]
         res = RolloutResult.join([f.result() for f in futs])
     t_sim = time.perf_counter()
     risks = summarise(alts, res)

@@ -117,3 +117,25 @@ class ULCertifier:
                     plans[f] = U
                     break
         return out, plans
+
+    def first_certified(self, x: _F8, d: _F8, positions: _F8, velocities: _F8,
+                        segments: _F8, plans: list[_F8]) -> int:
+        """Index of the first of ``plans`` (each (N, 3), applied from now) certified for
+        one future (``x`` (6,), ``d`` (3,), ``positions``/``velocities`` (m, 2),
+        ``segments`` (k, 4)) by the same strict rule, or −1."""
+        centres = np.ascontiguousarray(positions[None, :, :]
+                                       + self.t_stage[:, None, None] * velocities[None, :, :])
+        segs = np.ascontiguousarray(segments, dtype=float).reshape(-1, 4)
+        margins = np.empty((self.N + 1, self.radii.shape[1] + segs.shape[0]))
+        X = self._X
+        x = np.ascontiguousarray(x, dtype=float)
+        d = np.ascontiguousarray(d, dtype=float)
+        for k, U in enumerate(plans):
+            rollout(x, np.ascontiguousarray(U, dtype=float), d, self.coef, self.dt_s,
+                    self.substeps, X)
+            low, term, finite = certify(X, centres, self.radii, segs, self.clear, self.P_f,
+                                        margins)
+            if (finite and low >= 0.0 and term >= -_TERM_TOL
+                    and not (margins.shape[1] and margins[0].min() < 0.0)):
+                return k
+        return -1

@@ -34,7 +34,14 @@ cheap object once the solver is loaded) is the expensive part: 100 futures × 24
    ``plan_hold_stages`` stages (4 × 4.2 s at full scale, 4 × 0.5 s at model scale): the
    plan is certified for the predicted obstacles over its whole horizon, so following it
    stays safe unless a target departs from its prediction, which the next call sees;
-4. a fallback plan (nothing certified) is followed for ``fallback_hold_stages`` stage
+4. before a future's own solve, the plans the filter solved for *sibling futures* (the
+   same alternative, within the last stage; ``share_plans`` of them) are shifted to now
+   and certified for this future by the same strict rule; the first certified one is
+   followed as in 3. Sibling futures share the own ship's policy and differ in their
+   draws, so their solutions are close; a shared plan is certified for this future's own
+   targets, but it is not the filter's minimal change to *this* u_L, so it is measured
+   against the full rate (below);
+5. a fallback plan (nothing certified) is followed for ``fallback_hold_stages`` stage
    (one 4.2 s stage at full scale instead of re-solving every 0.5 s; at model scale the
    stage is the period, so nothing changes).
 
@@ -49,6 +56,7 @@ collision probability agrees within its confidence interval.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -101,6 +109,14 @@ class RolloutConfig:
         Period of the stored trajectories (ghost futures) [s].
     plan_hold_stages : int
         Economy: stages of a certified plan followed before the next filter call.
+    share_plans : int
+        Economy: how many of the plans the filter solved for sibling futures (same
+        alternative, within the last stage) are tried before this future's own call
+        (0: none).
+    share_group : int
+        Economy: futures share plans within fixed groups of this many draws (by their
+        index in the question); :func:`~asvtwin.whatif.ask` splits work between processes
+        on group edges, so the answer does not depend on the number of workers.
     fallback_hold_stages : int
         Economy: stages of a fallback plan followed before the next filter call (0: the
         filter is asked again at its period, as at the full rate).
@@ -120,6 +136,8 @@ class RolloutConfig:
     record_every_s: float = 5.0
     plan_hold_stages: int = 4
     fallback_hold_stages: int = 1
+    share_plans: int = 3
+    share_group: int = 10
 
     def __post_init__(self) -> None:
         for name in ("horizon_s", "turn_max_deg", "record_every_s"):
@@ -134,7 +152,8 @@ class RolloutConfig:
         if not (0 <= self.p_keep <= 1 and 0 <= self.p_turn <= 1 - self.p_keep):
             raise ParameterError(f"RolloutConfig: intent probabilities p_keep={self.p_keep}, "
                                  f"p_turn={self.p_turn} must be in [0, 1] with a sum <= 1")
-        for name, lo in (("plan_hold_stages", 1), ("fallback_hold_stages", 0)):
+        for name, lo in (("plan_hold_stages", 1), ("fallback_hold_stages", 0),
+                         ("share_plans", 0), ("share_group", 1)):
             v = getattr(self, name)
             if not (isinstance(v, int) and lo <= v <= 50):
                 raise ParameterError(f"RolloutConfig.{name} must be an integer in [{lo}, 50], "
@@ -157,7 +176,9 @@ class Samples:
 
     ``x0`` (R, m, 4) target states; ``intent`` (R, m) 0 keep, 1 turn, 2 speed up;
     ``t_change_s`` (R, m) when the intent starts [s]; ``turn_rad`` (R, m) signed course
-    change; ``speed_factor`` (R, m); ``d`` (R, 3) disturbance [N, N, Nm], body frame."""
+    change; ``speed_factor`` (R, m); ``d`` (R, 3) disturbance [N, N, Nm], body frame;
+    ``first``: index of the first of these draws in the whole question (for a worker's
+    slice)."""
 
     x0: _F8
     intent: NDArray[np.int64]
@@ -165,6 +186,7 @@ class Samples:
     turn_rad: _F8
     speed_factor: _F8
     d: _F8
+    first: int = 0
 
     @property
     def n(self) -> int:
@@ -173,7 +195,8 @@ class Samples:
     def take(self, idx: slice) -> Samples:
         """The draws of rollouts ``idx`` (for a worker)."""
         return Samples(self.x0[idx], self.intent[idx], self.t_change_s[idx],
-                       self.turn_rad[idx], self.speed_factor[idx], self.d[idx])
+                       self.turn_rad[idx], self.speed_factor[idx], self.d[idx],
+                       first=self.first + (idx.start or 0))
 
 
 def _sqrt_psd(c: _F8) -> _F8:
@@ -233,7 +256,7 @@ class RolloutResult:
             "land_clearance_m", "filter_calls", "interventions", "fallbacks", "track")}
         info = dict(parts[0].info)
         for k in ("filter_calls", "filters_built", "u_L_precertified",
-                  "filter_kept_u_L"):
+                  "filter_kept_u_L", "plans_shared", "cpu_s"):
             info[k] = float(sum(p.info.get(k, 0.0) for p in parts))
         return RolloutResult(**cat, track_t_s=parts[0].track_t_s, info=info)
 
@@ -301,6 +324,7 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
         The own ship's parameters (default ``fork.params``; pass the twin's, e.g. with
         astern thrust).
     """
+    cpu0 = time.process_time()
     cfg = config or RolloutConfig()
     p = params or fork.params
     A, R, m = len(alternatives), samples.n, fork.n_tracks
@@ -356,6 +380,11 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
     n_precert = 0
     n_passed = 0  # filter calls that kept u_L
     certified_plan: dict[int, tuple[float, _F8]] = {}  # per future: the filter's last plan
+    # per (alternative, group of share_group draws): recent solver plans; groups are fixed
+    # by the draw's index in the question, so a worker split on group edges changes nothing
+    shared: dict[tuple[int, int], list[tuple[float, _F8]]] = {}
+    G = cfg.share_group
+    n_shared = 0
     if any(a.filter for a in alternatives):
         proto = SafetyFilter(p, config=PsfConfig(backend=cfg.psf_backend))
         N, pdt = proto.config.N, proto.config.dt_s
@@ -390,6 +419,8 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
         # safety filter (per future, Python loop over the filtered ones that are due)
         if proto is not None:
             due_j: list[int] = []
+            for lst in shared.values():  # a shared plan is offered for one stage
+                lst[:] = [e for e in lst if t - e[0] < pdt - 1e-9]
             for i, a in enumerate(alternatives):
                 if not a.filter:
                     continue
@@ -452,6 +483,32 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
             for j in due_j:
                 i, r = divmod(j, R)
                 tg = targets[i]
+                grp = (i, (samples.first + r) // G)
+                if cfg.economy and cfg.share_plans and cert is not None and shared.get(grp):
+                    # a plan the filter certified for a sibling future of this alternative
+                    # within the last stage, shifted to now, certified for this one
+                    cands = []
+                    for t0, Up in shared[grp][-cfg.share_plans:][::-1]:
+                        s_i = round((t - t0) / pdt)
+                        Us = np.zeros((N, 3))
+                        Us[: N - s_i] = Up[s_i:]
+                        cands.append(Us)
+                    segs = due_segs.get(j, np.zeros((0, 4)))
+                    k_ok = cert.first_certified(x[j], samples.d[r], tg.p[r], tg.velocity[r],
+                                                segs, cands)
+                    if k_ok >= 0:
+                        due_segs.pop(j, None)
+                        Us = cands[k_ok]
+                        plans[j] = (t, Us)
+                        certified_plan[j] = (t, Us)
+                        u0[j] = Us[0]
+                        u_apply[j] = Us[0]
+                        lim = 0.01 * (proto.u_ub - proto.u_lb)
+                        uLc = np.clip(u_L[j], proto.u_lb, proto.u_ub)
+                        inter[j] += int(np.any((lim > 0) & (np.abs(uLc - Us[0]) > lim)))
+                        next_call[j] = t + max(cfg.plan_hold_stages * pdt, fper)
+                        n_shared += 1
+                        continue
                 f = filt.get(j)
                 if f is None:
                     f = filt[j] = SafetyFilter(p, config=PsfConfig(backend=cfg.psf_backend))
@@ -480,6 +537,8 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
                 falls[j] += int(res.fallback != "none")
                 if res.success:
                     certified_plan[j] = (t, np.asarray(res.u_pred, dtype=float))
+                    if not res.passed_through:
+                        shared.setdefault(grp, []).append((t, np.asarray(res.u_pred, float)))
                 # economy: a certified solver plan is followed for plan_hold_stages of its
                 # stages, a fallback plan for one stage; u_L kept is asked again at fper
                 if not cfg.economy or res.passed_through:
@@ -523,4 +582,5 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
         fallbacks=falls.reshape(sh), track=np.stack(rec, axis=2), track_t_s=np.array(rec_t),
         info={"filter_calls": float(n_filtered), "filters_built": float(len(filt)),
               "u_L_precertified": float(n_precert), "filter_kept_u_L": float(n_passed),
+              "plans_shared": float(n_shared), "cpu_s": time.process_time() - cpu0,
               "steps": float(steps), "dt_s": dt, "filter_period_s": fper})

@@ -1,9 +1,7 @@
 """Sweeps: refusal of malformed specifications, a short local grid, resumption, Parquet
-and the HTML report; Ray gives the same rows as the local pool."""
+and the HTML report (Ray against the local pool: test_ray.py)."""
 
 from __future__ import annotations
-
-import os
 
 import pyarrow.parquet as pq
 import pytest
@@ -11,9 +9,6 @@ import pytest
 from asvtwin.errors import ScenarioError
 from asvtwin.whatif.report import write_parquet, write_report
 from asvtwin.whatif.sweep import SweepSpec, load_sweep_spec, parse_param, rows_of, run_cells
-from tests.conftest import full_run
-
-_TIMING = ("wall_s", "realtime_factor", "ms_per_tick", "recording")
 
 
 def _spec(**kw):
@@ -72,19 +67,3 @@ def test_local_sweep_resumes_and_writes_parquet_and_report(tmp_path):
     assert "<svg" in html and "<script" not in html
     assert f'href="cells/{cells[0].id}/run.mcap"' in html
     assert (tmp_path / "cells" / cells[0].id / "run.mcap").exists()
-
-
-def _strip(s):
-    return {k: v for k, v in s.items() if k not in _TIMING}
-
-
-@pytest.mark.slow
-@pytest.mark.skipif(not full_run(), reason="starting a local Ray takes long on a shared 2-core "
-                    "machine (its raylet has a fixed 30 s limit); run with ASVTWIN_FULL=1")
-def test_ray_gives_the_same_rows_as_the_local_pool(tmp_path):
-    pytest.importorskip("ray")
-    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-    cells = _spec(params=(), seeds=2).cells()
-    local = run_cells(cells, tmp_path / "local", workers=1)
-    ray_ = run_cells(cells, tmp_path / "ray", backend="ray", workers=2, ray_address="local")
-    assert [_strip(s) for s in local] == [_strip(s) for s in ray_]
