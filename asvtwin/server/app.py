@@ -359,7 +359,15 @@ def create_app(feed: Any, *, token: str | None = None, send_timeout_s: float = 2
         finally:
             for t in (sender, receiver):
                 t.cancel()  # never await close() on a stalled socket: it blocks too
+                t.add_done_callback(_ended)
             hub.remove(client)
+
+    def _ended(t: asyncio.Future[Any]) -> None:
+        """A client's task ended: a client gone mid-send (dropped, send timeout; a send
+        being cancelled can end with the transport's error) is counted, not logged as an
+        unretrieved task exception."""
+        if not t.cancelled() and t.exception() is not None:
+            hub.counters[f"ws_ended_{type(t.exception()).__name__}"] += 1
 
     async def _receive(ws: WebSocket, client: Any) -> None:
         """Options changes from the client, ``{"rate_hz": 5}``; ends on disconnect."""

@@ -1,8 +1,9 @@
 """Fan-out of snapshots to WebSocket clients without letting a slow client slow anyone.
 
-One producer task polls the feed for a new :class:`~asvtwin.server.feed.Frame` and offers
-it to every client. Each client has its own sender task fed by a queue of length one where
-the newest frame replaces the one not yet sent, so a client that reads slowly simply gets
+One producer task polls the feed for a new :class:`~asvtwin.server.feed.Frame` (encoded
+once: every client is sent the same bytes) and offers it to every client. Each client has
+its own sender task fed by a one-frame slot where the newest frame replaces the one not
+yet sent, so a client that reads slowly simply gets
 fewer frames, and the producer never awaits a client. A blocked ``send`` (a client that
 stopped reading: uvicorn's ``send`` blocks once the socket buffers fill, ~2.7 MiB) is
 bounded by ``send_timeout_s``; on timeout the client's tasks are cancelled rather than
@@ -34,11 +35,16 @@ _ids = itertools.count(1)
 
 @dataclass(eq=False)
 class Client:
-    """One WebSocket client: its options, its one-slot frame queue and counters."""
+    """One WebSocket client: its options, its one-slot frame mailbox and counters.
+
+    ``slot`` holds the newest frame not yet sent (a queue of length one whose newest
+    frame replaces the old); ``wake`` is set when a frame or an event arrives. One event
+    per client and no per-message futures: the fan-out costs the loop one ``set()`` per
+    client and frame, the sender one wake-up per message."""
 
     options: ClientOptions
     id: int = field(default_factory=lambda: next(_ids))
-    queue: asyncio.Queue[Frame] = field(default_factory=lambda: asyncio.Queue(maxsize=1))
+    slot: Frame | None = None
     events: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=256))
     wake: asyncio.Event = field(default_factory=asyncio.Event)
     credit: asyncio.Event = field(default_factory=asyncio.Event)  # set: may send (ack mode)
@@ -47,16 +53,14 @@ class Client:
     bytes_sent: int = 0
 
     def offer(self, frame: Frame) -> None:
-        """Put ``frame`` in the queue, replacing a frame not yet sent (never blocks)."""
-        if self.queue.full():
-            with contextlib.suppress(asyncio.QueueEmpty):
-                self.queue.get_nowait()
-                self.replaced += 1
-        self.queue.put_nowait(frame)
+        """Put ``frame`` in the slot, replacing a frame not yet sent (never blocks)."""
+        if self.slot is not None:
+            self.replaced += 1
+        self.slot = frame
         if frame.events:
             self.events.append({"type": "events", "seq": frame.seq, "t_s": frame.t_s,
                                 "events": list(frame.events)})
-            self.wake.set()
+        self.wake.set()
 
 
 class Hub:
@@ -123,17 +127,11 @@ class Hub:
         """Send the newest frame at most ``rate_hz`` times per second; events first."""
         next_t = time.monotonic()
         while True:
-            get = asyncio.ensure_future(c.queue.get())
-            wake = asyncio.ensure_future(c.wake.wait())
-            try:
-                await asyncio.wait({get, wake}, return_when=asyncio.FIRST_COMPLETED)
-            finally:
-                for t in (get, wake):
-                    t.cancel()
-            frame = get.result() if get.done() and not get.cancelled() else None
+            await c.wake.wait()
             c.wake.clear()
             while c.events:
                 await self._send(ws, c, orjson.dumps(c.events.popleft()), text=True)
+            frame, c.slot = c.slot, None
             if frame is None:
                 continue
             if c.options.ack:
@@ -141,8 +139,8 @@ class Hub:
                 # arriving meanwhile replaces this one
                 await c.credit.wait()
                 c.credit.clear()
-                if not c.queue.empty():
-                    frame = c.queue.get_nowait()
+                if c.slot is not None:
+                    frame, c.slot = c.slot, None
             data = frame.msgpack() if c.options.format == "msgpack" else frame.data
             await self._send(ws, c, data, text=False)
             c.sent += 1
