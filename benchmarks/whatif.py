@@ -99,6 +99,14 @@ def _ray(f, land, cfg, rollouts, cpus: int) -> float | None:
 
 
 def main() -> None:
+    from asvtwin.cli.run import native_stdout_to_stderr
+
+    # acados prints QP warnings on fd 1; keep stdout for the one JSON object
+    with native_stdout_to_stderr() as out:
+        print(json.dumps(_measure()), file=out)
+
+
+def _measure() -> dict[str, object]:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rollouts", type=int, default=100)
     ap.add_argument("--quick", action="store_true", help="20 rollouts (two sharing groups)")
@@ -125,7 +133,7 @@ def main() -> None:
     filtered = sum(a.filter for a in default_alternatives()) * R
     tm = ans1.timing
     asked = tm["filter_calls"] + tm["u_L_precertified"]
-    print(json.dumps({
+    return {
         "rollouts_per_s": n_fut / t2,
         "fork_ms": fork_ms,
         "answer_s": t2,
@@ -146,7 +154,7 @@ def main() -> None:
                                                           ans1.result.min_distance_m)),
         "recommendation": ans.recommendation.label,
         "load_avg": os.getloadavg()[0],
-    }))
+    }
 
 
 if __name__ == "__main__":

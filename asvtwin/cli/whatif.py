@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -112,6 +111,14 @@ def _table(ans: Any) -> str:
 
 
 def whatif(args: argparse.Namespace) -> int:
+    from asvtwin.cli.run import native_stdout_to_stderr
+
+    # acados prints QP warnings on fd 1: with --json they go to stderr
+    with native_stdout_to_stderr(args.json) as out:
+        return _whatif(args, out)
+
+
+def _whatif(args: argparse.Namespace, out: Any) -> int:
     from asvtwin.cli import EXIT_CHECK_FAILED, EXIT_OK
     from asvtwin.whatif import RolloutConfig, ask, parse_alternative
 
@@ -137,8 +144,8 @@ def whatif(args: argparse.Namespace) -> int:
         ans = ask(f, alts, rollouts=args.rollouts, seed=args.seed, config=cfg, land=land,
                   params=params)
     if args.json:
-        json.dump(ans.to_dict(), sys.stdout, indent=2, default=float)
-        print()
+        json.dump(ans.to_dict(), out, indent=2, default=float)
+        print(file=out)
     else:
-        print(_table(ans))
+        print(_table(ans), file=out)
     return EXIT_OK if ans.recommendation.acceptable else EXIT_CHECK_FAILED
