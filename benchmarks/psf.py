@@ -36,7 +36,7 @@ from asvtwin.guidance import HeadingSpeedAutopilot
 from asvtwin.vessel import VesselSimulator, cybership2
 
 
-def main() -> None:
+def _main(stdout) -> None:  # type: ignore[no-untyped-def]
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--backend", default="auto")
     ap.add_argument("--steps", type=int, default=300)
@@ -147,7 +147,16 @@ def main() -> None:
         "distance_north_m": round(float(x[0]), 2),
         "build_s": round(build_s, 2),
         "steered": steered,
-    }))
+    }), file=stdout)
+
+
+def main() -> None:
+    """Run; native solver prints (acados' "QP solver returned error status 3") go to
+    stderr, so stdout holds the one JSON object."""
+    from asvtwin.cli.run import native_stdout_to_stderr
+
+    with native_stdout_to_stderr() as out:
+        _main(out)
 
 
 if __name__ == "__main__":

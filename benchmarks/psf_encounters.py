@@ -37,7 +37,7 @@ from asvtwin.control.encounters import encounter_cases, run_encounter
 from asvtwin.vessel import cybership2, cybership2_full_scale
 
 
-def main() -> None:
+def _main(stdout) -> None:  # type: ignore[no-untyped-def]
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--backend", default=available_backends()[0],
                     help="comma-separated backends (default: the fastest installed)")
@@ -123,7 +123,16 @@ def main() -> None:
         "unfiltered_collisions": unfiltered,
         "settings": settings,
         "wall_s": round(time.perf_counter() - t0, 1),
-    }))
+    }), file=stdout)
+
+
+def main() -> None:
+    """Run; native solver prints (acados' "QP solver returned error status 3") go to
+    stderr, so stdout holds the one JSON object."""
+    from asvtwin.cli.run import native_stdout_to_stderr
+
+    with native_stdout_to_stderr() as out:
+        _main(out)
 
 
 if __name__ == "__main__":
