@@ -5,6 +5,8 @@
 - :mod:`asvtwin.rl.vec_env` — the batched world (numba kernels, one filter per vessel);
 - :mod:`asvtwin.rl.env` — the Gymnasium environment (``rl`` extra);
 - :mod:`asvtwin.rl.train`, :mod:`asvtwin.rl.study` — PPO training and the three-setup study;
+- :mod:`asvtwin.rl.evaluate`, :mod:`asvtwin.rl.library` — held-out evaluation and the
+  scenario library's open-water encounters in the RL world;
 - :mod:`asvtwin.rl.policy`, :mod:`asvtwin.rl.controller` — the shipped numpy policy and the
   twin's ``rl`` / ``rl_psf`` controller (no torch needed).
 
