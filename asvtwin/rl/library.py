@@ -162,8 +162,9 @@ def library_encounters() -> tuple[list[LibraryEncounter], dict[str, str]]:
             skipped[name] = f"targets follow {sorted(kinds)} (not a straight line)"
             continue
         pts = [_ned(own.start)] + [_ned(p) for p in own.route]
-        starts = [_ned(t.start) for t in sc.targets]
-        if any(p is None for p in pts + starts):
+        starts_or_none = [_ned(t.start) for t in sc.targets]
+        starts = [p for p in starts_or_none if p is not None]
+        if None in pts or len(starts) < len(starts_or_none):
             skipped[name] = "positions given as latitude/longitude"
             continue
         s = _HULLS[own.vessel]().length / L_m
