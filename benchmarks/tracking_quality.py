@@ -5,8 +5,8 @@ AIS every 10 s with 5 m noise for the targets that carry it; pointed-bow hulls, 
 15-60 m, beam a quarter of it; 300 s):
 
 - ``open_sea``: 6 vessels at 80-350 m on random constant-velocity courses, 0.5-4 m/s;
-- ``close_pairs``: pairs 30 m apart (abreast, in column, crossing, overtaking), one vessel
-  of each pair with AIS and one without;
+- ``close_pairs``: pairs 30 m apart (abreast, in column, crossing with a 30 m closest
+  approach, overtaking), one vessel of each pair with AIS and one without;
 - ``near_coast``: 6 vessels 100-190 m off a wavy shore, running along it, seen from
   350 m offshore, the tracker given a chart perturbed against the LiDAR's world
   (:func:`asvtwin.sensors.perturb_chart`: 5 m shift, 2 m warp, 3 m simplification:
@@ -143,6 +143,7 @@ def run_set(kind: str, seeds: range, fusion: str, persistence: float) -> dict[st
         "nis_lidar": float(np.mean(nl)) if nl else float("nan"),
         "nis_lidar_bounds": list(nees_bounds(2, max(len(nl), 1))),
         "nis_ais": float(np.mean(na)) if na else float("nan"),
+        "nis_ais_bounds": list(nees_bounds(2, max(len(na), 1))),
         "id_switches": sum(p["switches"] for p in parts),
         "mmsi_swaps": sum(p["mmsi_swaps"] for p in parts),
         "mmsi_swaps_incl_warmup": sum(p["mmsi_swaps_incl_warmup"] for p in parts),

@@ -9,7 +9,13 @@ values out.
 from __future__ import annotations
 
 from asvtwin.tracking.association import FORBIDDEN, gate_threshold, gated_costs, gnn_assign
-from asvtwin.tracking.clustering import ClusterConfig, Clusters, cluster_points, cluster_scan
+from asvtwin.tracking.clustering import (
+    ClusterConfig,
+    Clusters,
+    cluster_points,
+    cluster_scan,
+    split_clusters,
+)
 from asvtwin.tracking.config import TrackerConfig
 from asvtwin.tracking.ellipse import (
     FIT_COLLINEAR,
@@ -132,6 +138,7 @@ __all__ = [
     "predictions_for_safety",
     # metrics
     "rmse",
+    "split_clusters",
     "track_breaks",
     "uncertainty_polygon",
 ]

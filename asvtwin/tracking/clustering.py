@@ -21,7 +21,7 @@ Non-finite points are dropped and counted; nothing here raises on data.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numba import njit
@@ -32,7 +32,7 @@ from asvtwin.errors import ParameterError, StateError
 from asvtwin.geo.land import LandMask
 from asvtwin.sensors.lidar import LidarScan
 
-__all__ = ["ClusterConfig", "Clusters", "cluster_points", "cluster_scan"]
+__all__ = ["ClusterConfig", "Clusters", "cluster_points", "cluster_scan", "split_clusters"]
 
 
 
@@ -57,6 +57,15 @@ class ClusterConfig:
         Clusters with fewer returns are dropped (and counted), >= 1.
     coast_margin_m : float
         Returns within this distance of the shore are coast [m], >= 0.
+    occlusion_tol_m : float
+        A return beside a cluster's angular end counts as an occluder when it is closer
+        than the end's range by more than this [m], >= 0; a return between two returns
+        is "past" them when farther than both by more than this.
+    max_empty_rays : int
+        Beam-gap split (ordered scans): two returns are never linked when more than this
+        many rays between them returned nothing or returned from beyond both (free water
+        between two hulls; the silhouette of one hull is an unbroken run of bearings).
+        It tolerates that many dropouts; -1 disables the split (the adaptive link alone).
     """
 
     link_m: float = 3.0
@@ -66,6 +75,8 @@ class ClusterConfig:
     window: int = 4
     min_points: int = 1
     coast_margin_m: float = 2.0
+    occlusion_tol_m: float = 1.0
+    max_empty_rays: int = 1
 
     def __post_init__(self) -> None:
         for name, ok, expected in (
@@ -76,6 +87,9 @@ class ClusterConfig:
             ("window", int(self.window) >= 1, ">= 1"),
             ("min_points", int(self.min_points) >= 1, ">= 1"),
             ("coast_margin_m", 0.0 <= self.coast_margin_m < np.inf, "finite and >= 0 m"),
+            ("occlusion_tol_m", 0.0 <= self.occlusion_tol_m < np.inf, "finite and >= 0 m"),
+            ("max_empty_rays", int(self.max_empty_rays) == self.max_empty_rays and self.max_empty_rays >= -1,
+             "an integer >= -1"),
         ):
             if not ok:
                 raise ParameterError(f"ClusterConfig.{name} must be {expected}, actually: {getattr(self, name)!r}")
@@ -101,6 +115,12 @@ class Clusters:
         Non-finite returns dropped.
     n_small : int
         Returns dropped in clusters smaller than ``min_points``.
+    end_shadow_m : ndarray, shape (k, 2), or None
+        Occlusion at the cluster's two angular ends ``[lower bearing, higher bearing]``:
+        the width [m], at the range of the end return, of the run of *closer* returns (or
+        of the field of view's edge) just beyond that end, i.e. how far the hull may
+        continue unseen behind an occluder; 0 where the next ray is empty or farther (a
+        true silhouette edge). None when unknown (clusters not from an ordered scan).
     """
 
     points: _F8
@@ -110,6 +130,7 @@ class Clusters:
     n_coast: int = 0
     n_invalid: int = 0
     n_small: int = 0
+    end_shadow_m: _F8 | None = None
 
     def __len__(self) -> int:
         return int(self.offsets.shape[0] - 1)
@@ -150,9 +171,37 @@ def _find(parent, i):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _link_ordered(pts, r, ang, link_m, lam, noise, window, max_link):  # type: ignore[no-untyped-def]
-    """Union–find labels of angularly ordered points; neighbours within ``window``, cyclic."""
+def _beam_gap(i0, i1, rmax, ranges, hit, m, full, max_empty):  # type: ignore[no-untyped-def]
+    """Whether more than ``max_empty`` rays strictly between rays ``i0`` and ``i1`` (the
+    short way round for a full circle) saw nothing or saw past ``rmax``: the silhouette of
+    one hull is an unbroken run of bearings, so such a gap is free water between two
+    objects (a dropout explains at most ``max_empty`` rays)."""
+    d = i1 - i0
+    if full:
+        d %= m
+        if d > m // 2:
+            d -= m
+    step = 1 if d > 0 else -1
+    empty = 0
+    for k in range(1, abs(d)):
+        j = (i0 + step * k) % m
+        if not hit[j] or ranges[j] > rmax:
+            empty += 1
+            if empty > max_empty:
+                return True
+    return False
+
+
+@njit(cache=True)
+def _link_ordered(pts, r, ang, link_m, lam, noise, window, max_link, ix, ranges, hit, full, max_empty,
+                  tol):  # type: ignore[no-untyped-def]
+    """Union–find labels of angularly ordered points; neighbours within ``window``, cyclic.
+
+    ``ix`` is each point's ray index in the scan (``ranges``, ``hit``: the whole scan);
+    two points are never linked across a beam gap (:func:`_beam_gap`, ``max_empty``
+    tolerated empty rays; ``max_empty < 0`` disables the test)."""
     n = pts.shape[0]
+    m = ranges.shape[0]
     parent = np.arange(n)
     for i in range(n):
         for w in range(1, min(window, n - 1) + 1):
@@ -166,6 +215,9 @@ def _link_ordered(pts, r, ang, link_m, lam, noise, window, max_link):  # type: i
                 if dphi < 0.5 * lam:  # adaptive breakpoint detector (not across wide gaps)
                     lim = min(min(r[i], r[j]) * np.sin(dphi) / np.sin(lam - dphi) + noise, max_link)
                     linked = d2 <= lim * lim
+            if linked and max_empty >= 0:
+                linked = not _beam_gap(int(ix[i]), int(ix[j]), max(r[i], r[j]) + tol, ranges, hit, m, full,
+                                       max_empty)
             if linked:
                 ri, rj = _find(parent, i), _find(parent, j)
                 if ri != rj:
@@ -218,7 +270,8 @@ def _group(pts: _F8, labels: NDArray[np.int64], min_points: int) -> tuple[_F8, N
 
 @njit(cache=True)
 def _valid_returns(pts, r, ang, hit):  # type: ignore[no-untyped-def]
-    """The returns with a hit, a finite point and a finite range, compacted: (pts, r, ang, n_invalid)."""
+    """The returns with a hit, a finite point and a finite range, compacted: (pts, r, ang,
+    ray index (as float), n_invalid)."""
     n = pts.shape[0]
     keep = np.zeros(n, np.bool_)
     k, n_hit = 0, 0
@@ -228,13 +281,13 @@ def _valid_returns(pts, r, ang, hit):  # type: ignore[no-untyped-def]
             if np.isfinite(pts[i, 0]) and np.isfinite(pts[i, 1]) and np.isfinite(r[i]):
                 keep[i] = True
                 k += 1
-    p, rr, aa = np.empty((k, 2)), np.empty(k), np.empty(k)
+    p, rr, aa, ix = np.empty((k, 2)), np.empty(k), np.empty(k), np.empty(k)
     j = 0
     for i in range(n):
         if keep[i]:
-            p[j, 0], p[j, 1], rr[j], aa[j] = pts[i, 0], pts[i, 1], r[i], ang[i]
+            p[j, 0], p[j, 1], rr[j], aa[j], ix[j] = pts[i, 0], pts[i, 1], r[i], ang[i], i
             j += 1
-    return p, rr, aa, n_hit - k
+    return p, rr, aa, ix, n_hit - k
 
 
 def _coast_filter(pts: _F8, land: LandMask | None, margin: float) -> tuple[_F8, NDArray[np.bool_]]:
@@ -261,18 +314,82 @@ def cluster_scan(scan: LidarScan, land: LandMask | None = None, config: ClusterC
     Clusters
     """
     cfg = config or ClusterConfig()
-    pts, r, ang, n_invalid = _valid_returns(
+    pts, r, ang, ix, n_invalid = _valid_returns(
         np.ascontiguousarray(scan.points_ned, dtype=np.float64), np.ascontiguousarray(scan.ranges_m, dtype=np.float64),
         np.ascontiguousarray(scan.angles_rad, dtype=np.float64), np.ascontiguousarray(scan.hit, dtype=np.bool_))
     n_before = pts.shape[0]
     if land is not None and n_before:
         pts, water = _coast_filter(pts, land, cfg.coast_margin_m)
-        pts, r, ang = np.ascontiguousarray(pts), r[water], ang[water]
-    labels = _link_ordered(pts, r, ang, cfg.link_m, cfg.incidence_rad,
-                           3.0 * cfg.range_std_m, int(cfg.window), cfg.max_link_m)
+        pts, r, ang, ix = np.ascontiguousarray(pts), r[water], ang[water], ix[water]
+    ranges = np.ascontiguousarray(scan.ranges_m, dtype=np.float64)
+    hit = np.ascontiguousarray(scan.hit, dtype=np.bool_)
+    step, full = _scan_geometry(scan.angles_rad)
+    labels = _link_ordered(pts, r, ang, cfg.link_m, cfg.incidence_rad, 3.0 * cfg.range_std_m, int(cfg.window),
+                           cfg.max_link_m, ix, ranges, hit, full, int(cfg.max_empty_rays), cfg.occlusion_tol_m)
     p, off, small = _group_kernel(pts, labels, int(cfg.min_points))
+    # the ray index and range of every grouped return, in the same order (for the ends)
+    g, _, _ = _group_kernel(np.ascontiguousarray(np.column_stack([ix, r])), labels, int(cfg.min_points))
+    shadow = _end_shadows(g, off, ranges, hit, step, full, cfg.occlusion_tol_m)
     return Clusters(points=p, offsets=off, t_s=float(scan.t_s), origin_ned=np.array(scan.origin_ned, dtype=float),
-                    n_coast=n_before - pts.shape[0], n_invalid=int(n_invalid), n_small=int(small))
+                    n_coast=n_before - pts.shape[0], n_invalid=int(n_invalid), n_small=int(small),
+                    end_shadow_m=shadow)
+
+
+def _scan_geometry(angles: _F8) -> tuple[float, bool]:
+    """Angular step [rad] of an ordered scan and whether it closes the circle."""
+    n = angles.shape[0]
+    if n < 2:
+        return 2.0 * np.pi, True
+    step = abs(float(np.angle(np.exp(1j * (angles[1] - angles[0])))))
+    return step, bool(n * step >= 2.0 * np.pi - 0.5 * step)
+
+
+#: Rays counted at most beyond a cluster's end when measuring an occluder's shadow.
+_MAX_SHADOW_RAYS = 400
+
+
+@njit(cache=True)
+def _end_shadows(g, off, ranges, hit, step, full, tol):  # type: ignore[no-untyped-def]
+    """Shadow widths [m] beyond the two angular ends of each cluster (see
+    :attr:`Clusters.end_shadow_m`). ``g[:, 0]`` holds the ray index of each grouped return
+    (ascending within a cluster), ``g[:, 1]`` its range. The ends of a cluster sit on
+    either side of its widest gap in ray index (cyclic for a full circle). Beyond an end,
+    one empty ray (a dropout) is skipped; then every ray whose return is closer than the
+    end's range by more than ``tol`` [m] is part of the occluder's shadow; the field of
+    view's edge (a sector scan) counts as a shadow of ``_MAX_SHADOW_RAYS`` rays."""
+    m = ranges.shape[0]
+    k = off.shape[0] - 1
+    out = np.zeros((k, 2))
+    for c in range(k):
+        s, e = off[c], off[c + 1]
+        lo, hi = s, e - 1  # positions of the low and high ends within g
+        if full and e - s > 1:
+            best = int(g[s, 0]) + m - int(g[e - 1, 0])  # the wrap-around gap
+            for j in range(s, e - 1):
+                gap = int(g[j + 1, 0]) - int(g[j, 0])
+                if gap > best:
+                    best, lo, hi = gap, j + 1, j
+        for side in range(2):
+            pos = lo if side == 0 else hi
+            i0, r0 = int(g[pos, 0]), g[pos, 1]
+            d = -1 if side == 0 else 1
+            cnt = 0
+            skipped = False
+            j = i0
+            while cnt < _MAX_SHADOW_RAYS:
+                j += d
+                if not full and (j < 0 or j >= m):
+                    cnt = _MAX_SHADOW_RAYS  # the edge of the field of view
+                    break
+                j %= m
+                if hit[j] and ranges[j] < r0 - tol:
+                    cnt += 1
+                elif not hit[j] and cnt == 0 and not skipped:
+                    skipped = True
+                else:
+                    break
+            out[c, side] = cnt * r0 * step
+    return out
 
 
 def cluster_points(
@@ -327,3 +444,123 @@ def cluster_points(
     q, off, small = _group(p, labels.astype(np.int64), int(min_points))
     return Clusters(points=q, offsets=off, t_s=float(t_s), n_coast=n0 - p.shape[0],
                     n_invalid=int((~fin).sum()), n_small=small)
+
+
+def split_clusters(clusters: Clusters, centres: ArrayLike, reach_m: ArrayLike, *,
+                   min_separation_m: float = 10.0, anchored: ArrayLike | None = None,
+                   course_rad: ArrayLike | None = None, semi_axes_m: ArrayLike | None = None,
+                   ) -> tuple[Clusters, int]:
+    """Split clusters that two or more predicted vessels fall into (known positions split
+    what the beam geometry could not: vessels closer than the segmentation's resolution).
+
+    Each vessel is a footprint: the box of ``semi_axes_m`` (along, across) turned to
+    ``course_rad`` about its centre (a point when not given). A vessel *claims* a
+    cluster when some return of the cluster lies within ``reach_m`` of its footprint (its
+    position uncertainty). A cluster claimed by two or more vessels at least
+    ``min_separation_m`` apart is cut into one piece per vessel, each return going to
+    the nearest footprint (inside several: the nearest centre). The pieces keep the
+    occlusion shadow of the original cluster's outer ends; the ends at a cut get none.
+
+    Parameters
+    ----------
+    clusters : Clusters
+        One scan's clusters.
+    centres : array_like, shape (p, 2)
+        Predicted vessel centres ``[north_m, east_m]`` [m] (e.g. the AIS-tied tracks).
+    reach_m : array_like, shape (p,)
+        How far from its footprint a vessel's returns may lie [m], >= 0.
+    min_separation_m : float
+        Centres closer than this [m] are one claim (duplicates of one vessel).
+    anchored : array_like of bool, shape (p,), optional
+        When given, a cluster is split only if one of its claims is anchored (a position
+        with independent evidence, e.g. an AIS report: two tracks from LiDAR alone may be
+        duplicates of one hull).
+    course_rad : array_like, shape (p,), optional
+        Hull axis of each vessel from north, clockwise [rad].
+    semi_axes_m : array_like, shape (p, 2), optional
+        Half-length and half-beam of each vessel [m] (with ``course_rad``).
+
+    Returns
+    -------
+    Clusters
+        The clusters, split ones replaced by their pieces (in place of the original).
+    int
+        How many clusters were split.
+    """
+    c = np.asarray(centres, dtype=np.float64).reshape(-1, 2)
+    reach = np.broadcast_to(np.asarray(reach_m, dtype=np.float64), (c.shape[0],))
+    anc = None if anchored is None else np.broadcast_to(np.asarray(anchored, dtype=bool), (c.shape[0],))
+    p_ = c.shape[0]
+    if course_rad is None or semi_axes_m is None:
+        hdg, semi = np.zeros(p_), np.zeros((p_, 2))
+    else:
+        hdg = np.broadcast_to(np.asarray(course_rad, dtype=np.float64), (p_,))
+        semi = np.broadcast_to(np.asarray(semi_axes_m, dtype=np.float64), (p_, 2))
+
+    def box_distance(pts: NDArray[np.float64], js: NDArray[np.int64]) -> NDArray[np.float64]:
+        """(m, len(js)) distances [m] of the points to the vessels' footprints."""
+        dn = pts[:, None, 0] - c[None, js, 0]
+        de = pts[:, None, 1] - c[None, js, 1]
+        ch, sh = np.cos(hdg[js])[None, :], np.sin(hdg[js])[None, :]
+        s_ = np.maximum(np.abs(dn * ch + de * sh) - semi[None, js, 0], 0.0)
+        t_ = np.maximum(np.abs(-dn * sh + de * ch) - semi[None, js, 1], 0.0)
+        return np.hypot(s_, t_)
+
+    k = len(clusters)
+    if k == 0 or c.shape[0] < 2:
+        return clusters, 0
+    # cheap pre-selection on bounding circles: (k, p)
+    cen = clusters.centroids
+    owner = np.repeat(np.arange(k), clusters.sizes)
+    rad = np.zeros(k)
+    np.maximum.at(rad, owner, np.hypot(*(clusters.points - cen[owner]).T))
+    dc = np.hypot(cen[:, None, 0] - c[None, :, 0], cen[:, None, 1] - c[None, :, 1])
+    cand = dc <= rad[:, None] + reach[None, :] + np.hypot(semi[:, 0], semi[:, 1])[None, :]
+    multi = np.flatnonzero(cand.sum(axis=1) >= 2)
+    if multi.size == 0:
+        return clusters, 0
+    pieces: dict[int, list[tuple[NDArray[np.float64], float, float]]] = {}
+    for i in multi.tolist():
+        pts = clusters[i]
+        js = np.flatnonzero(cand[i])
+        js = js[(box_distance(pts, js) <= reach[js][None, :]).any(axis=0)]  # claims: a return within reach
+        # one claim per place: a centre within min_separation of an earlier one is dropped
+        keep: list[int] = []
+        for j in js.tolist():
+            if all(np.hypot(*(c[j] - c[q])) >= min_separation_m for q in keep):
+                keep.append(j)
+        if len(keep) < 2 or (anc is not None and not anc[keep].any()):
+            continue
+        kk = np.array(keep)
+        d = np.hypot(pts[:, None, 0] - c[None, kk, 0], pts[:, None, 1] - c[None, kk, 1])
+        lab = np.argmin(box_distance(pts, kk) * 1e6 + d, axis=1)  # nearest footprint, then centre
+        sh = np.zeros(2) if clusters.end_shadow_m is None else clusters.end_shadow_m[i]
+        parts = []
+        for q in range(len(keep)):
+            sel = np.flatnonzero(lab == q)
+            if sel.size == 0:
+                continue
+            # points are in ray order: the piece holding the first (last) return keeps
+            # the cluster's lower (higher) end
+            parts.append((pts[sel], float(sh[0]) if sel[0] == 0 else 0.0,
+                          float(sh[1]) if sel[-1] == len(pts) - 1 else 0.0))
+        if len(parts) >= 2:
+            pieces[i] = parts
+    if not pieces:
+        return clusters, 0
+    arrs: list[NDArray[np.float64]] = []
+    shadows: list[tuple[float, float]] = []
+    old_sh = clusters.end_shadow_m
+    for i in range(k):
+        if i in pieces:
+            for p, s0, s1 in pieces[i]:
+                arrs.append(p)
+                shadows.append((s0, s1))
+        else:
+            arrs.append(clusters[i])
+            shadows.append((0.0, 0.0) if old_sh is None else (float(old_sh[i, 0]), float(old_sh[i, 1])))
+    pts = np.concatenate(arrs)
+    off = np.concatenate([[0], np.cumsum([len(a) for a in arrs])]).astype(np.int64)
+    out = replace(clusters, points=pts, offsets=off,
+                  end_shadow_m=None if old_sh is None else np.array(shadows, dtype=np.float64))
+    return out, len(pieces)

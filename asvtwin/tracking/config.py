@@ -66,6 +66,12 @@ class TrackerConfig:
         (hull-centre model) [m/s] ...
     course_max_std_rad : float
         ... when the course's standard deviation is below this [rad].
+    split_by_tracks : bool
+        Cut a LiDAR cluster that two confirmed tracks (one tied to a fresh AIS report)
+        predict into, one piece per track (vessels closer than the segmentation resolves).
+        Off by default: without the vessels' dimensions (AIS message 5) the footprints
+        come from fitted ellipses, and a merged cluster's fit swallows the neighbour
+        (measured in docs/tracking.md, "Resolution limit").
     cluster, lidar, ais : ClusterConfig, LidarModel, AisModel
         Segmentation and measurement models.
     """
@@ -91,8 +97,9 @@ class TrackerConfig:
     chart_error_m: float = 10.0
     course_min_speed_m_s: float = 0.5
     course_max_std_rad: float = float(np.deg2rad(20.0))
+    split_by_tracks: bool = False
     cluster: ClusterConfig = field(default_factory=ClusterConfig)
-    lidar: LidarModel = field(default_factory=lambda: LidarModel(depth_persistence=20.0))
+    lidar: LidarModel = field(default_factory=lambda: LidarModel(depth_persistence=3.0))
     ais: AisModel = field(default_factory=AisModel)
 
     def __post_init__(self) -> None:

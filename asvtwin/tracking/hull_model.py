@@ -42,6 +42,9 @@ __all__: list[str] = []  # kernels; the public API is asvtwin.tracking.measureme
 
 _COARSE = 18  # orientation search: 5° steps over 90°, then 1° around the best
 _FINE = 11
+#: |w·axis| (sine of the axis' angle to the line of sight) above which the near end of
+#: that axis may hide behind an occluder (sin 20°)
+_NEAR_HIDE = float(np.sin(np.deg2rad(20.0)))
 
 
 @njit(cache=True)
@@ -78,23 +81,25 @@ def _box_orientation(pts, s, n):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _axis(near, far, sign, e, g_near, g_far_lo, g_far_hi, kappa):  # type: ignore[no-untyped-def]
+def _axis(near, far, sign, g_near, g_far_lo, g_far_hi, kappa, near_kappa):  # type: ignore[no-untyped-def]
     """Centre coordinate and variance along one hull axis (see the module docstring).
 
     The far gap (the unseen depth: hull proportions, a hidden bow) stays the same from
     scan to scan, so its variance is scaled by ``kappa`` (the number of scans over which
     it is correlated) for a filter that would otherwise average it away; the near gap
-    (sampling at a corner) changes with every scan."""
+    (sampling at a corner) changes with every scan (``near_kappa`` 1), unless it is a
+    part hidden behind an occluder (then ``near_kappa = kappa``). Returns the centre,
+    the variance for a filter and the single-scan variance."""
     m_far = 0.5 * (g_far_lo + g_far_hi)
     v_far = (g_far_hi - g_far_lo) ** 2 / 12.0
     m_near = 0.5 * g_near
     v_near = g_near * g_near / 12.0
     c = 0.5 * (near + far) + sign * 0.5 * (m_far - m_near)
-    return c, 0.25 * (kappa * v_far + v_near), 0.25 * (v_far + v_near)
+    return c, 0.25 * (kappa * v_far + near_kappa * v_near), 0.25 * (v_far + v_near)
 
 
 @njit(cache=True)
-def hull_box_kernel(points, offsets, origin, heading, heading_std, prm, only_known=False):  # type: ignore[no-untyped-def]
+def hull_box_kernel(points, offsets, origin, heading, heading_std, shadow, prm, only_known=False):  # type: ignore[no-untyped-def]
     """Centres ``z (k, 2)``, covariances ``R (k, 2, 2)`` (the unseen-depth part scaled by
     ``kappa``: for a filter), box extents ``ext (k, 2)`` ``[along, across]`` and the
     single-scan covariances ``R1`` (kappa = 1: for gates) of all clusters.
@@ -102,12 +107,15 @@ def hull_box_kernel(points, offsets, origin, heading, heading_std, prm, only_kno
     ``heading[i]`` is the hull axis of cluster ``i`` [rad] (NaN: unknown, the box
     orientation is used and the axes are ambiguous), ``heading_std`` its standard
     deviation [rad]; with ``only_known`` clusters without a heading are skipped (NaN
-    rows). ``prm`` = [range_std, bearing_std, angular_step (0: from the
+    rows). ``shadow (k, 2)`` is the occluder's shadow width [m] beyond the cluster's
+    lower- and higher-bearing ends (:attr:`~asvtwin.tracking.clustering.Clusters.end_shadow_m`;
+    0: a silhouette edge). ``prm`` = [range_std, bearing_std, angular_step (0: from the
     cluster), rho_min, rho_max, k_tip, orientation_std, floor_std, k_gap, taper,
-    taper_angle_lo, taper_angle_hi, kappa (persistence of the unseen-depth error, scans)].
+    taper_angle_lo, taper_angle_hi, kappa (persistence of the unseen-depth error, scans),
+    max_hidden (most of a hull taken to hide behind an occluder, m)].
     """
     rs, bs, step, rho_lo, rho_hi, ktip, ostd, floor = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7]
-    kgap, taper, a_lo, a_hi, kappa = prm[8], prm[9], prm[10], prm[11], prm[12]
+    kgap, taper, a_lo, a_hi, kappa, max_hidden = prm[8], prm[9], prm[10], prm[11], prm[12], prm[13]
     k = offsets.shape[0] - 1
     z = np.full((k, 2), np.nan)
     R = np.full((k, 2, 2), np.nan)
@@ -202,16 +210,54 @@ def hull_box_kernel(points, offsets, origin, heading, heading_std, prm, only_kno
             tap_lo, tap_hi = w_all * taper * L_est, w_any * taper * L_est
         else:  # sensor ahead: the far half of the beam behind the near V face and flank
             half_lo, half_hi = (1.0 - w_any) * et, (1.0 - w_all) * et
+        # an end hidden behind an occluder: the hull may go on behind it. The occluder's
+        # shadow is E wide across the line of sight at the end's range; the end's
+        # direction across the line of sight is w = ∓(−l1, l0) (lower / higher bearing).
+        # Going ΔS along a hull axis a sweeps ΔS |w·a| of bearing, so up to
+        # ΔS = E / |w·a| (at most max_hidden) of the hull may hide on the side sign(w·a)
+        # of each axis: that extreme gets an unseen part U[0, ΔS] that repeats from scan
+        # to scan. End-on, the whole length may hide behind a narrow occluder.
+        # (sign_h > 0: the sensor is on the s0 side, so s1 is the far extreme)
+        occ_h0 = occ_h1 = occ_t0 = occ_t1 = 0.0  # extensions beyond s0, s1, t0, t1
+        for side in range(2):
+            E = shadow[i, side]
+            if not E > 0.0:
+                continue
+            w0, w1 = (l1, -l0) if side == 0 else (-l1, l0)
+            wh = w0 * ch + w1 * sh
+            wn = -w0 * sh + w1 * ch
+            ext_h = min(E / max(abs(wh), 1e-9), max_hidden)
+            ext_t = min(E / max(abs(wn), 1e-9), max_hidden)
+            # the near extreme of an axis within ~20° of the line of sight cannot hide:
+            # its face is what the visible bearings show (a stern seen end-on behind a
+            # boat can, being across the line of sight by more than that)
+            if wh > 0.0 and (sign_h > 0.0 or abs(wh) >= _NEAR_HIDE):
+                occ_h1 = max(occ_h1, ext_h)
+            elif wh <= 0.0 and (sign_h < 0.0 or abs(wh) >= _NEAR_HIDE):
+                occ_h0 = max(occ_h0, ext_h)
+            if wn > 0.0 and (sign_n > 0.0 or abs(wn) >= _NEAR_HIDE):
+                occ_t1 = max(occ_t1, ext_t)
+            elif wn <= 0.0 and (sign_n < 0.0 or abs(wn) >= _NEAR_HIDE):
+                occ_t0 = max(occ_t0, ext_t)
+        if known:  # the beam is at most 1/ρ_min of the longest the hull can be
+            cap_t = max((es + occ_h0 + occ_h1 + min(dh, big)) / rho_lo - et, 0.0)
+            occ_t0, occ_t1 = min(occ_t0, cap_t), min(occ_t1, cap_t)
         # along h
+        far_occ, near_occ = (occ_h1, occ_h0) if sign_h > 0 else (occ_h0, occ_h1)
         hi = min(dh, max(L_hi - es, 0.0))
         lo = min(max(L_lo - es, 0.0), hi)
-        zs, vs, vs1 = _axis(near_h, far_h, sign_h, es, min(dh, ktip * d), lo + tap_lo, hi + tap_hi, kappa)
-        L_max = es + hi + tap_hi
+        g_near = min(dh, ktip * d)
+        zs, vs, vs1 = _axis(near_h, far_h, sign_h, max(g_near, near_occ), lo + tap_lo,
+                            max(hi + tap_hi, far_occ), kappa, kappa if near_occ > g_near else 1.0)
+        L_max = es + max(hi + tap_hi, far_occ) + near_occ
         # along n
+        far_occ, near_occ = (occ_t1, occ_t0) if sign_n > 0 else (occ_t0, occ_t1)
         hi = min(dn, max(B_hi - et, 0.0))
         lo = min(max(B_lo - et, 0.0), hi)
-        zt, vt, vt1 = _axis(near_n, far_n, sign_n, et, min(dn, ktip * d), lo + half_lo, hi + half_hi, kappa)
-        B_max = et + hi + half_hi
+        g_near = min(dn, ktip * d)
+        zt, vt, vt1 = _axis(near_n, far_n, sign_n, max(g_near, near_occ), lo + half_lo,
+                            max(hi + half_hi, far_occ), kappa, kappa if near_occ > g_near else 1.0)
+        B_max = et + max(hi + half_hi, far_occ) + near_occ
         z[i, 0] = zs * ch - zt * sh
         z[i, 1] = zs * sh + zt * ch
         ext[i, 0], ext[i, 1] = es, et

@@ -180,6 +180,9 @@ class LidarModel:
         Scale of the unseen-depth variance, >= 1 [-]: that error repeats from scan to
         scan, so a filter fed every scan must see it as this many scans' worth (1: the
         single-scan covariance).
+    max_hidden_m : float
+        Most of a hull taken to continue unseen behind an occluder beside a cluster's end
+        [m] (the occluder's shadow bounds it first; :attr:`Clusters.end_shadow_m`).
     """
 
     range_std_m: float = 0.05
@@ -205,6 +208,7 @@ class LidarModel:
     heading_floor_rad: float = float(np.deg2rad(3.0))
     centre_floor_m: float = 0.3
     depth_persistence: float = 1.0
+    max_hidden_m: float = 150.0
 
     def __post_init__(self) -> None:
         for name in ("range_std_m", "bearing_std_rad", "coverage_gain", "depth_gain", "end_gain", "min_coverage_rad",
@@ -227,7 +231,7 @@ class LidarModel:
         if not 0.0 <= a0 <= a1 <= 0.5 * np.pi:
             raise ParameterError(f"LidarModel.taper_angles_rad must be (lo, hi) with 0 <= lo <= hi <= π/2, "
                                  f"actually: {self.taper_angles_rad!r}")
-        for name in ("fit_floor_m", "default_half_depth_m", "max_semi_axis_m"):
+        for name in ("fit_floor_m", "default_half_depth_m", "max_semi_axis_m", "max_hidden_m"):
             _positive("LidarModel", name, getattr(self, name))
 
 
@@ -270,7 +274,14 @@ def _hull_prm(mdl: LidarModel) -> _F8:
     return np.array([mdl.range_std_m, mdl.bearing_std_rad, mdl.angular_step_rad, mdl.length_beam_ratio[0],
                      mdl.length_beam_ratio[1], mdl.tip_gap_rays, mdl.orientation_std_rad, mdl.centre_floor_m,
                      mdl.gap_factor, mdl.bow_taper, mdl.taper_angles_rad[0], mdl.taper_angles_rad[1],
-                     mdl.depth_persistence])
+                     mdl.depth_persistence, mdl.max_hidden_m])
+
+
+def _end_shadows(clusters: Clusters) -> _F8:
+    """The clusters' occlusion shadows (zeros when the segmenter did not record them)."""
+    if clusters.end_shadow_m is None:
+        return np.zeros((len(clusters), 2))
+    return np.ascontiguousarray(clusters.end_shadow_m, dtype=np.float64).reshape(len(clusters), 2)
 
 
 def hull_centres(clusters: Clusters, heading_rad: ArrayLike, heading_std_rad: ArrayLike,
@@ -306,7 +317,8 @@ def hull_centres(clusters: Clusters, heading_rad: ArrayLike, heading_std_rad: Ar
         raise StateError("hull-centre measurements need the sensor position (Clusters.origin_ned), actually: NaN")
     points = np.ascontiguousarray(clusters.points, dtype=np.float64).reshape(-1, 2)
     offsets = np.ascontiguousarray(clusters.offsets, dtype=np.int64)
-    z, R, ext, _ = hull_box_kernel(points, offsets, origin, h, hs, _hull_prm(mdl), only_known)
+    z, R, ext, _ = hull_box_kernel(points, offsets, origin, h, hs, _end_shadows(clusters), _hull_prm(mdl),
+                                   only_known)
     return z, R, ext
 
 
@@ -344,8 +356,8 @@ def lidar_measurements(clusters: Clusters, model: LidarModel | None = None) -> L
     ext = np.full((len(z), 2), np.nan)
     if mdl.centre == "hull_box" and len(z):
         k = len(z)
-        z, Rf, ext, R = hull_box_kernel(points, offsets, origin, np.full(k, np.nan), np.zeros(k), _hull_prm(mdl),
-                                        False)
+        z, Rf, ext, R = hull_box_kernel(points, offsets, origin, np.full(k, np.nan), np.zeros(k),
+                                        _end_shadows(clusters), _hull_prm(mdl), False)
         return LidarMeasurements(z=z, R=R, fits=EllipseFits.from_array(out), used_fit=use, extent_m=ext,
                                  R_update=Rf)
     return LidarMeasurements(z=z, R=R, fits=EllipseFits.from_array(out), used_fit=use, extent_m=ext)

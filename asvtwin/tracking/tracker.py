@@ -38,7 +38,7 @@ from asvtwin.checks import F8 as _F8
 from asvtwin.geo.land import LandMask
 from asvtwin.sensors.lidar import LidarScan
 from asvtwin.tracking.association import FORBIDDEN, gate_threshold, gated_costs, gnn_assign
-from asvtwin.tracking.clustering import Clusters, cluster_scan
+from asvtwin.tracking.clustering import Clusters, cluster_scan, split_clusters
 from asvtwin.tracking.config import TrackerConfig
 from asvtwin.tracking.fusion import (
     _product_kernel,
@@ -108,7 +108,7 @@ class Tracker:
             "ais_reports", "ais_rejected", "ais_stale", "ais_gated_out", "ais_reseeded",
             "tracks_created", "tracks_confirmed", "tracks_deleted", "tracks_merged", "deleted_on_land",
             "nan_guard", "lidar_with_course", "lidar_vetoed_by_ais", "ais_ambiguous", "init_coast_band",
-            "ais_recovered"), 0)
+            "ais_recovered", "clusters_split"), 0)
         self._warned: set[str] = set()
         #: Position NIS (2 dof) of this tick's LiDAR updates and tied AIS updates:
         #: ``νᵀ (P + R)⁻¹ ν`` before the update (diagnostics: χ²₂ when consistent).
@@ -199,6 +199,8 @@ class Tracker:
         fit_axes = np.full((n, 2), np.nan)
         if scan is not None:
             cl = cluster_scan(scan, self.land, cfg.cluster) if isinstance(scan, LidarScan) else scan
+            if cfg.split_by_tracks and len(cl):
+                cl = self._split_by_tracks(t, cl)
             self._count("coast_points", cl.n_coast)
             self._count("invalid_points", cl.n_invalid, "non-finite LiDAR returns dropped")
             self._count("small_clusters", cl.n_small)
@@ -309,6 +311,34 @@ class Tracker:
         return self._last
 
     # ------------------------------------------------------------------ pieces
+    def _split_by_tracks(self, t: float, cl: Clusters) -> Clusters:
+        """Cut clusters that two confirmed tracks predict into, one of them tied to an MMSI
+        with a fresh report (:func:`~asvtwin.tracking.clustering.split_clusters`): vessels
+        closer than the segmentation resolves stay two tracks. A tied track stands at its
+        AIS-only estimate (independent of the merged returns), others at their prediction;
+        its footprint is its fitted semi-axes along its course, reached within twice its
+        largest position σ (at most 10 m)."""
+        a, cfg = self._a, self.config
+        sel = np.flatnonzero(a["confirmed"])
+        if sel.size < 2:
+            return cl
+        fresh = (a["mmsi"][sel] >= 0) & a["hasA"][sel] & (t - a["tA"][sel] <= cfg.fusion_window_s)
+        if not fresh.any():
+            return cl
+        x = np.where(fresh[:, None], a["xA"][sel, :2], a["x"][sel, :2])
+        P = np.where(fresh[:, None, None], a["PA"][sel, :2, :2], a["P"][sel, :2, :2])
+        tr, det = P[:, 0, 0] + P[:, 1, 1], P[:, 0, 0] * P[:, 1, 1] - P[:, 0, 1] ** 2
+        sig = np.sqrt(0.5 * tr + np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0)))
+        # footprint: the fitted semi-axes along the course (5 × 2 m when not fitted)
+        ax = a["axes"][sel]
+        semi = np.column_stack([np.nan_to_num(ax[:, 0], nan=5.0), np.nan_to_num(ax[:, 1], nan=2.0)])
+        semi[:, 1] = np.minimum(semi[:, 1], semi[:, 0])
+        v = a["x"][sel, 2:]
+        out, n_split = split_clusters(cl, x, np.minimum(2.0 * sig, 10.0), min_separation_m=cfg.merge_distance_m,
+                                      anchored=fresh, course_rad=np.arctan2(v[:, 1], v[:, 0]), semi_axes_m=semi)
+        self._count("clusters_split", n_split)
+        return out
+
     def _recover_identity(self, ti: NDArray[np.int64], tj: NDArray[np.int64], ok: NDArray[np.bool_], z: _F8,
                           R: _F8) -> None:
         """A tied report outside its track's gate but consistent with the track's AIS-only
@@ -371,8 +401,8 @@ class Tracker:
         """Hull-centre measurements of associated clusters with their track's course as the
         hull axis (the aspect is then known: :mod:`asvtwin.tracking.hull_model`)."""
         cfg = self.config
-        if cfg.lidar.centre != "hull_box" or rows.size == 0:
-            return z, R
+        if cfg.lidar.centre != "hull_box" or rows.size == 0 or not np.isfinite(cl.origin_ned).all():
+            return z, R  # (clusters without the sensor position keep the fitted centre)
         v = self._a["x"][rows, 2:]
         Pv = self._a["P"][rows, 2:, 2:]
         sp2 = (v * v).sum(axis=1)

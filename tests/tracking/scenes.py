@@ -60,7 +60,8 @@ def coastal_vessels(seed: int, m: int = 6) -> tuple[np.ndarray, np.ndarray, np.n
 
 
 def vessel_pairs(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Four pairs 30 m apart: abreast, in column, crossing (meeting at mid-run), overtaking."""
+    """Four pairs 30 m apart: abreast, in column, crossing (at right angles, the second
+    passing 30 m astern of the first: closest point of approach 30 m), overtaking."""
     rng = np.random.default_rng(3000 + seed)
     rows = []
     base = [(-200.0, -250.0), (150.0, -250.0), (-150.0, 150.0), (200.0, 150.0)]
@@ -70,9 +71,10 @@ def vessel_pairs(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             rows += [[n0, e0, 0.0, v], [n0 + 30.0, e0, 0.0, v]]
         elif kind == "column":
             rows += [[n0, e0, 0.0, v], [n0, e0 - 30.0 - 25.0, 0.0, v]]
-        elif kind == "crossing":  # both reach (n0, e0 + v T/2) at mid-run, 90° apart
+        elif kind == "crossing":  # tracks cross at (n0, e0 + v T/2), 90° apart; the second
+            # reaches it 30√2 m later: CPA 30 m (a crossing that meets at one point is a collision)
             mid = np.array([n0, e0 + v * 0.5 * T_SCENE_S])
-            rows += [[n0, e0, 0.0, v], [mid[0] - v * 0.5 * T_SCENE_S, mid[1], v, 0.0]]
+            rows += [[n0, e0, 0.0, v], [mid[0] - v * 0.5 * T_SCENE_S - 30.0 * np.sqrt(2.0), mid[1], v, 0.0]]
         else:  # the second overtakes the first 30 m abeam
             rows += [[n0, e0, 0.0, v], [n0 + 30.0, e0 - 0.5 * T_SCENE_S * 0.6, 0.0, v + 0.6]]
     x0 = np.array(rows)
