@@ -3,8 +3,8 @@ browser), against the server on 127.0.0.1 with the synthetic feed. Checks that t
 the 3-D view, targets, cones, the filter's plan and the table are drawn (the page's
 counters and pixels of its screenshots), that the controls act on the feed, that the
 page's NED <-> WGS84 port matches the Python one, and that nothing is requested from any
-address but 127.0.0.1. Screenshots go to ``out/test-artifacts/`` (and to ``docs/img/``
-with ``ASVTWIN_DOC_IMAGES=1``)."""
+address but 127.0.0.1. Screenshots go to ``out/test-artifacts/`` as ``synthetic-*.png``
+(the documentation's pictures are the live twin's, test_live_twin.py)."""
 
 from __future__ import annotations
 
@@ -52,9 +52,11 @@ def choose(page, selector: str, value: str) -> None:
 
 
 def save(png: bytes, name: str) -> np.ndarray:
+    """Keep a screenshot as a test artefact; the live twin's (``viewer*.png``, from
+    test_live_twin.py) also refresh docs/img/ with ``ASVTWIN_DOC_IMAGES=1``."""
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     (ARTIFACTS / name).write_bytes(png)
-    if os.environ.get("ASVTWIN_DOC_IMAGES"):
+    if os.environ.get("ASVTWIN_DOC_IMAGES") and name.startswith("viewer"):
         (DOC_IMG / name).write_bytes(png)
     return np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
 
@@ -134,15 +136,15 @@ def test_chart_3d_table_and_status_are_drawn(live):
     assert v["view3d"]["frames"] >= 1 and v["view3d"]["hulls"] == n + 1
     assert v["view3d"]["terrainVertices"] > 10_000
     assert v["table"]["rows"] == n and v["table"]["dangerous"] >= 1
-    save(page.screenshot(), "viewer.png")  # first: element shots scroll the page
-    chart = save(page.locator("#chart-pane").screenshot(), "viewer-chart.png")
+    save(page.screenshot(), "synthetic-viewer.png")  # first: element shots scroll the page
+    chart = save(page.locator("#chart-pane").screenshot(), "synthetic-viewer-chart.png")
     assert count_colour(chart, (26, 154, 42)) > 30  # the plan, green
     assert count_colour(chart, (224, 20, 30)) > 30  # its critical stages and the alarm, red
     assert count_colour(chart, (216, 200, 154), tol=6) > 5000  # land
-    view3d = save(page.locator("#view3d-pane").screenshot(), "viewer-3d.png")
+    view3d = save(page.locator("#view3d-pane").screenshot(), "synthetic-viewer-3d.png")
     assert count_colour(view3d, (224, 106, 16), tol=60) > 20  # the own ship's hull from astern
     assert view3d.std() > 10  # terrain, water and sky, not a blank canvas
-    save(page.locator("#table-pane").screenshot(), "viewer-table.png")
+    save(page.locator("#table-pane").screenshot(), "synthetic-viewer-table.png")
     status = page.locator("#status").inner_text()
     for level in ("L0", "L1", "L2", "L3", "L4", "L5"):
         assert level in status
@@ -248,7 +250,7 @@ def test_replay_has_a_timeline_that_seeks(replay):
                              s.dispatchEvent(new Event('change')); }""")
     page.wait_for_function("Math.abs(asvtwinViewer.latest.t_s - 2.5) < 0.11", timeout=WAIT_MS)
     assert srv.feed.playback_time_s() == pytest.approx(2.5, abs=1e-6)
-    save(page.locator("#timeline").screenshot(), "viewer-timeline.png")
+    save(page.locator("#timeline").screenshot(), "synthetic-viewer-timeline.png")
     assert not foreign
 
 
@@ -261,7 +263,7 @@ def test_whatif_draws_ghosts_and_the_answer(live):
         page.click("#btn-pause", **F)
         page.wait_for_function("asvtwinViewer.latest.clock.paused", timeout=WAIT_MS)
     page.wait_for_timeout(500)
-    before = save(page.locator("#chart-pane").screenshot(), "viewer-whatif-before.png")
+    before = save(page.locator("#chart-pane").screenshot(), "synthetic-viewer-whatif-before.png")
     page.click("#btn-whatif", **F)
     assert page.locator("#whatif-panel").is_visible()
     for value in ("route+filter_off", "keep_course"):
@@ -298,7 +300,7 @@ def test_whatif_draws_ghosts_and_the_answer(live):
     assert "route" in panel and "starboard:30" in panel
     assert ans["recommendation"]["label"] in panel and "collisions" in panel
     page.wait_for_timeout(800)
-    after = save(page.locator("#chart-pane").screenshot(), "viewer-whatif.png")
+    after = save(page.locator("#chart-pane").screenshot(), "synthetic-viewer-whatif.png")
     assert (np.abs(after - before).max(axis=2) > 40).sum() > 200  # ghosts and panel drawn
     page.click("#btn-whatif-close", **F)
     page.wait_for_function("asvtwinViewer.chart.ghosts == 0", timeout=WAIT_MS)

@@ -194,7 +194,7 @@ export class Chart {
       const k = Math.max(0, labels.indexOf(g.alternative));
       const pos = g.positions_m || [];
       if (pos.length > 1) {
-        feats.push(line(this._ll(pos), { k: 'l', color: g.collision ? 'rgba(224,20,30,0.55)' : hexA(GHOST_COLOURS[k % GHOST_COLOURS.length], 0.45), width: 1.5, dash: 'solid', alt: g.alternative }));
+        feats.push(line(this._ll(pos), { k: 'l', color: g.collision ? 'rgba(224,20,30,0.6)' : hexA(GHOST_COLOURS[k % GHOST_COLOURS.length], 0.55), width: 2.5, dash: 'solid', alt: g.alternative }));
       }
     }
     this.ghostFeats = feats;
@@ -228,13 +228,13 @@ export class Chart {
     const hull = placed(hullOutline(L, B), p, psi);
     all.push(poly(this._ll(hull), { k: 'f', fill: 'rgba(255,255,255,0.4)' }));
     ln(hull, P.own, 1);
-    // what-if ghosts under the live picture
-    for (const g of this.ghostFeats) all.push(g);
     (tr.ids || []).forEach((id, i) => { const mm = tr.pred_mean[i] || []; if (mm.length > 1) ln(mm, '#1f8a35', 1); });
     // route and past track
     const route = own.route || [];
     if (route.length) ln([p, ...route.slice(own.waypoint_index || 0)], P.route, 2, 'long');
     if ((own.past_track || []).length > 1) ln([...own.past_track, p], '#555555', 1.5);
+    // what-if ghosts over the route, under the plan and the targets
+    for (const g of this.ghostFeats) all.push(g);
     // fitted ellipses
     const el = s.ellipses;
     let nEll = 0;

@@ -77,7 +77,10 @@ function deriveTargets(s, limits) {
       key: `t${id}`, label: ai !== undefined && a.names[ai] ? a.names[ai] : (m >= 0 ? `${m}` : `track ${id}`),
       pos: [x, y], vel: [vx, vy], sog: Math.hypot(vx, vy), cogRad: Math.atan2(vy, vx),
       heading: ai !== undefined ? (a.heading_rad[ai] ?? a.cog_rad[ai]) : Math.atan2(vy, vx),
-      cpa: tr.cpa_m[i], tcpa: tr.tcpa_s[i], source: tr.source[i], lost: tr.status[i] === 'coasting',
+      // lost: a track with AIS is lost when its AIS reports went stale (the registry's
+      // judgement, by reporting interval); between two reports it coasts, as it should
+      cpa: tr.cpa_m[i], tcpa: tr.tcpa_s[i], source: tr.source[i],
+      lost: ai !== undefined ? !!a.stale[ai] : tr.status[i] === 'coasting',
       age: ai !== undefined ? a.age_s[ai] : scanAge, length: ai !== undefined ? a.length_m[ai] : null,
       beam: ai !== undefined ? a.beam_m[ai] : null, mmsi: m,
     });
