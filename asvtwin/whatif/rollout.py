@@ -113,6 +113,9 @@ class RolloutConfig:
         Economy: how many of the plans the filter solved for sibling futures (same
         alternative, within the last stage) are tried before this future's own call
         (0: none).
+    cold_start_solves : int
+        Solves of a future's first filter call (the filter's ``cold_start_solves``; 0: the
+        filter's default, 5).
     share_group : int
         Economy: futures share plans within fixed groups of this many draws (by their
         index in the question); :func:`~asvtwin.whatif.ask` splits work between processes
@@ -137,6 +140,7 @@ class RolloutConfig:
     plan_hold_stages: int = 4
     fallback_hold_stages: int = 1
     share_plans: int = 3
+    cold_start_solves: int = 0
     share_group: int = 10
 
     def __post_init__(self) -> None:
@@ -153,7 +157,8 @@ class RolloutConfig:
             raise ParameterError(f"RolloutConfig: intent probabilities p_keep={self.p_keep}, "
                                  f"p_turn={self.p_turn} must be in [0, 1] with a sum <= 1")
         for name, lo in (("plan_hold_stages", 1), ("fallback_hold_stages", 0),
-                         ("share_plans", 0), ("share_group", 1)):
+                         ("share_plans", 0), ("share_group", 1),
+                         ("cold_start_solves", 0)):
             v = getattr(self, name)
             if not (isinstance(v, int) and lo <= v <= 50):
                 raise ParameterError(f"RolloutConfig.{name} must be an integer in [{lo}, 50], "
@@ -386,7 +391,9 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
     G = cfg.share_group
     n_shared = 0
     if any(a.filter for a in alternatives):
-        proto = SafetyFilter(p, config=PsfConfig(backend=cfg.psf_backend))
+        psf_cfg = PsfConfig(backend=cfg.psf_backend,
+                            cold_start_solves=cfg.cold_start_solves or 5)
+        proto = SafetyFilter(p, config=psf_cfg)
         N, pdt = proto.config.N, proto.config.dt_s
         reach_t = N * pdt
         coast_r = reach_t * float(proto.nu_max[0]) + proto.d_safe_m + proto.d_f_m
@@ -511,7 +518,7 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
                         continue
                 f = filt.get(j)
                 if f is None:
-                    f = filt[j] = SafetyFilter(p, config=PsfConfig(backend=cfg.psf_backend))
+                    f = filt[j] = SafetyFilter(p, config=psf_cfg)
                 obs: list[MovingObstacles | CoastSegments] = []
                 if m:
                     obs.append(MovingObstacles.constant_velocity(
