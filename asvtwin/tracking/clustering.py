@@ -206,6 +206,9 @@ def _link_ordered(pts, r, ang, link_m, lam, noise, window, max_link, ix, ranges,
     for i in range(n):
         for w in range(1, min(window, n - 1) + 1):
             j = (i + w) % n
+            ri, rj = _find(parent, i), _find(parent, j)
+            if ri == rj:
+                continue  # already one cluster: the link would change nothing
             d2 = (pts[i, 0] - pts[j, 0]) ** 2 + (pts[i, 1] - pts[j, 1]) ** 2
             linked = d2 <= link_m * link_m
             if not linked:
@@ -215,13 +218,11 @@ def _link_ordered(pts, r, ang, link_m, lam, noise, window, max_link, ix, ranges,
                 if dphi < 0.5 * lam:  # adaptive breakpoint detector (not across wide gaps)
                     lim = min(min(r[i], r[j]) * np.sin(dphi) / np.sin(lam - dphi) + noise, max_link)
                     linked = d2 <= lim * lim
-            if linked and max_empty >= 0:
+            if linked and max_empty >= 0 and abs(ix[j] - ix[i]) > 1.5:  # neighbouring rays: no gap
                 linked = not _beam_gap(int(ix[i]), int(ix[j]), max(r[i], r[j]) + tol, ranges, hit, m, full,
                                        max_empty)
             if linked:
-                ri, rj = _find(parent, i), _find(parent, j)
-                if ri != rj:
-                    parent[max(ri, rj)] = min(ri, rj)
+                parent[max(ri, rj)] = min(ri, rj)
     labels = np.empty(n, np.int64)
     for i in range(n):
         labels[i] = _find(parent, i)
