@@ -13,8 +13,15 @@ Two steps, both vectorised:
    (capped at ``max_link_m``, so a wide gap of empty bearings never links two vessels),
    i.e. the gap between returns on a surface seen at incidence down to :math:`\lambda`; only returns
    within ``window`` positions of each other are compared (an object occupies a contiguous
-   run of bearings), which makes it O(m) in a numba union–find. Unordered points use a k-d
-   tree (scipy) and connected components.
+   run of bearings), which makes it O(m) in a numba union–find. Two returns are never
+   linked across a **beam gap**: more than ``max_empty_rays`` rays between them that saw
+   nothing or saw past both (the silhouette of one hull is an unbroken run of bearings).
+   Unordered points use a k-d tree (scipy) and connected components.
+3. **Occluded ends.** Beside each cluster's two angular ends, the run of nearer returns
+   (an occluder) is measured as a width at the end's range
+   (:attr:`Clusters.end_shadow_m`): how far the hull may go on unseen behind it.
+
+:func:`split_clusters` cuts a cluster between known vessel positions (tracks, AIS).
 
 Non-finite points are dropped and counted; nothing here raises on data.
 """

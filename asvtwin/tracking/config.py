@@ -71,7 +71,7 @@ class TrackerConfig:
         predict into, one piece per track (vessels closer than the segmentation resolves).
         Off by default: without the vessels' dimensions (AIS message 5) the footprints
         come from fitted ellipses, and a merged cluster's fit swallows the neighbour
-        (measured in docs/tracking.md, "Resolution limit").
+        (measured in docs/tracking.md, "Splitting by known positions").
     cluster, lidar, ais : ClusterConfig, LidarModel, AisModel
         Segmentation and measurement models.
     """

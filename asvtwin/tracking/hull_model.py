@@ -18,7 +18,13 @@ frame, and the returns give the visible extents ``[s_min, s_max] × [t_min, t_ma
   :math:`\rho \in [\rho_{min}, \rho_{max}]`, so end-on (only the stern or the bow seen,
   ``B`` measured) the depth is :math:`L \in [\rho_{min} B, \rho_{max} B]`, and broadside
   (``L`` measured) it is :math:`B \in [L/\rho_{max}, L/\rho_{min}]`. Without a known
-  heading the axes are ambiguous and both ranges apply (a wide, honest variance).
+  heading the axes are ambiguous and both ranges apply (a wide, honest variance);
+- an end of the cluster beside an occluder's shadow ``E`` (nearer returns,
+  :attr:`~asvtwin.tracking.clustering.Clusters.end_shadow_m`) lets the hull go on
+  behind it: on each axis ``a`` up to :math:`E / |w \cdot a|` on the side
+  :math:`\operatorname{sign}(w \cdot a)`, ``w`` the end's direction across the line of
+  sight (the near end of an axis within 20° of the line of sight excepted: its face is
+  what the visible bearings show).
 
 Per axis the centre is :math:`(x_{near} + x_{far})/2 + \sigma (G_{far} - G_{near})/2` with
 ``σ`` pointing away from the sensor, so the measurement is the mean of that and its

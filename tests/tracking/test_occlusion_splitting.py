@@ -85,8 +85,9 @@ def test_partly_occluded_hull_centre_is_consistent() -> None:
     assert np.mean(nees_blind > 13.8) > 0.5
 
 
-def _abreast(gap_m: float, r_m: float, cfg: ClusterConfig, n: int, seed: int) -> float:
-    """Fraction of scans in which two 30 × 7.5 m hulls side by side, seen from astern at
+def _abreast(gap_m: float, r_m: float, cfg: ClusterConfig, n: int, seed: int, L: float = 30.0,
+             B: float = 7.5) -> float:
+    """Fraction of scans in which two L × B hulls side by side, seen from astern at
     ``r_m`` with ``gap_m`` of water between them, give no cluster mixing the two."""
     rng = np.random.default_rng(seed)
     lidar = Lidar(LidarConfig(n_rays=720, max_range_m=600.0))
@@ -94,9 +95,9 @@ def _abreast(gap_m: float, r_m: float, cfg: ClusterConfig, n: int, seed: int) ->
     for _ in range(n):
         b = rng.uniform(-np.pi, np.pi)
         c, perp = r_m * np.array([np.cos(b), np.sin(b)]), np.array([-np.sin(b), np.cos(b)])
-        d = 0.5 * (7.5 + gap_m)
+        d = 0.5 * (B + gap_m)
         x = np.array([[*(c + d * perp), np.cos(b), np.sin(b)], [*(c - d * perp), np.cos(b), np.sin(b)]])
-        scan = lidar.scan(np.zeros(6), x, [30.0, 30.0], [7.5, 7.5], None, rng)
+        scan = lidar.scan(np.zeros(6), x, [L, L], [B, B], None, rng)
         cl = cluster_scan(scan, None, cfg)
         ok += all(len(_ids_of(scan, cl, k)) == 1 for k in range(len(cl)))
     return ok / n
@@ -111,6 +112,17 @@ def test_beam_gap_resolves_hulls_abreast_down_to_two_ray_spacings() -> None:
     assert _abreast(4.0, 150.0, new, 12, 1) == 1.0
     # below the limit (less than one ray spacing of water) the two stay one cluster
     assert _abreast(1.5, 300.0, new, 12, 2) == 0.0
+
+
+def test_beam_gap_at_model_scale() -> None:
+    # CyberShip II-sized hulls (1.255 × 0.29 m) 12 m away, as in the model-scale basin:
+    # the same limit in ray spacings (one spacing is 0.10 m here); the adaptive link's
+    # 3 m minimum merged them at any gap below 3 m
+    cfg = ClusterConfig(link_m=0.3)
+    assert _abreast(0.35, 12.0, cfg, 12, 3, L=1.255, B=0.29) == 1.0
+    assert _abreast(0.35, 12.0, ClusterConfig(), 12, 3, L=1.255, B=0.29) == 1.0
+    assert _abreast(0.35, 12.0, ClusterConfig(max_empty_rays=-1), 12, 3, L=1.255, B=0.29) == 0.0
+    assert _abreast(0.05, 12.0, cfg, 12, 4, L=1.255, B=0.29) == 0.0
 
 
 def test_cluster_config_validates_the_split_settings() -> None:
