@@ -677,8 +677,8 @@ class Twin:
         yet, e.g. for a viewer connecting to a twin that starts paused)."""
         with self._lock:
             s = self._latest
-        if s is None:
-            self.refresh()
+        if s is None:  # (no controls applied here: this may be another thread)
+            self._publish_current(take_commands=False)
             with self._lock:
                 s = self._latest
         assert s is not None
@@ -686,10 +686,14 @@ class Twin:
 
     def refresh(self) -> Snapshot:
         """Apply the queued controls and publish a snapshot of the current state without
-        advancing time (what a paused twin shows). Not recorded: the recording holds the
-        ticks' snapshots, and the controls applied here are recorded at this tick, where a
-        re-run applies them too."""
-        if self._inputs is None:  # a re-run applies the recording's commands in its ticks
+        advancing time (what a paused twin shows; the run loop calls it while paused, so
+        call it only from the thread that runs the twin). Not recorded: the recording
+        holds the ticks' snapshots, and the controls applied here are recorded at this
+        tick, where a re-run applies them too."""
+        return self._publish_current(take_commands=True)
+
+    def _publish_current(self, *, take_commands: bool) -> Snapshot:
+        if take_commands and self._inputs is None:  # a re-run applies them in its ticks
             self._take_commands()
         snap = self._build_snapshot(self.t_s, self.world.own_state, self.world.target_states,
                                     keep_state=True)
