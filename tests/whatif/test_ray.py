@@ -58,3 +58,18 @@ def test_sweep_on_ray_gives_the_same_rows_as_the_local_pool(ray_executor, tmp_pa
     strip = [{k: v for k, v in s.items() if k not in _TIMING} for s in local]
     assert strip == [{k: v for k, v in s.items() if k not in _TIMING} for s in on_ray]
     assert len({s["seed"] for s in local}) == 2
+
+
+def test_whatif_cli_on_ray_prints_the_in_process_answer(ray_executor, capsys):
+    import json
+
+    from asvtwin.cli import main
+
+    argv = ["whatif", "model_scale_crossing", "--at", "0.5", "--rollouts", "20", "--horizon",
+            "10", "--alt", "route", "--alt", "port:30+filter_off", "--json"]
+    main(argv)
+    here = json.loads(capsys.readouterr().out)
+    main([*argv, "--ray", "local", "--workers", "2"])  # joins the running local Ray
+    there = json.loads(capsys.readouterr().out)
+    assert there["alternatives"] == here["alternatives"]
+    assert there["recommendation"] == here["recommendation"]
