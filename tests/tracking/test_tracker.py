@@ -32,10 +32,11 @@ def test_fusion_beats_either_sensor_alone(fusion: str) -> None:
     run = run_scene(X0, LEN, T=300, ais_std_m=10.0, tracker=Tracker(TrackerConfig(fusion=fusion)))
     in_range = np.hypot(run.truth[..., 0], run.truth[..., 1]) < 400.0
     fused, lidar, ais = (_rmse(run, f, in_range) for f in ("mean", "lidar_only_mean", "ais_only_mean"))
-    if fusion == "product":  # the paper's fusion: better than either sensor
-        assert fused < 0.85 * ais and fused < 0.85 * lidar, (fused, lidar, ais)
+    if fusion == "product":  # the paper's fusion: better than either sensor (measured 2.2 / 7.0 / 5.5 m)
+        assert fused < 0.85 * ais and fused < 0.5 * lidar, (fused, lidar, ais)
     else:  # the alternatives (compared in docs/tracking.md): at least better than LiDAR alone
-        # (LiDAR alone is 6.9 m since the hull model knows occlusion; it was 12.6 m)
+        # (LiDAR alone is 7.0 m since the hull model knows occlusion, 12.6 m before; Chen's
+        # weighting gives 6.0 m, CI 3.4 m)
         assert fused < lidar, (fused, lidar, ais)
     assert sorted(m for m in run.snaps[-1].mmsi if m) == [257000000 + i for i in range(4)]
     assert all(np.isfinite(s.mean).all() and np.isfinite(s.cov).all() for s in run.snaps)
