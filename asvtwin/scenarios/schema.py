@@ -354,15 +354,16 @@ class AisSpec(_Model):
     )
     path: str | None = Field(default=None, description="NMEA log for mode file")
     url: str | None = Field(default=None, description="tcp://host:port or udp://host:port for live")
-    gnss_position_std_m: float = Field(
-        default=4.0, ge=0.0, le=100.0,
+    gnss_position_std_m: float | None = Field(
+        default=None, ge=0.0, le=100.0,
         description="synthetic mode: GNSS position error of each transponder's fix, per axis, "
-        "1 sigma [m] (white, seeded; 4 m puts 95 % within ITU-R M.1371's 10 m 'high accuracy')",
+        "1 sigma [m] (white, seeded); null: 4 m for a full-scale own ship (95 % within "
+        "ITU-R M.1371's 10 m 'high accuracy'), Froude-scaled for a model-scale one",
     )
-    gnss_velocity_std_m_s: float = Field(
-        default=0.05, ge=0.0, le=5.0,
+    gnss_velocity_std_m_s: float | None = Field(
+        default=None, ge=0.0, le=5.0,
         description="synthetic mode: GNSS velocity error per axis, 1 sigma [m/s] (SOG and COG "
-        "are computed from the noisy velocity)",
+        "are computed from the noisy velocity); null: 0.05 m/s at full scale, Froude-scaled",
     )
 
     @model_validator(mode="after")

@@ -76,7 +76,7 @@ from asvtwin.twin.transponders import Transponders
 from asvtwin.twin.world import World
 from asvtwin.vessel import VesselParams, vessel_by_name
 
-__all__ = ["TIMING_FIELDS", "Twin", "comparable", "run_scenario"]
+__all__ = ["TIMING_FIELDS", "Twin", "comparable", "gnss_error", "run_scenario"]
 
 _log = logging.getLogger(__name__)
 
@@ -112,6 +112,24 @@ def own_params(scenario: Scenario) -> VesselParams:
         act = dataclasses.replace(p.actuators, tau_min=(0.0, *p.actuators.tau_min[1:]))
         p = dataclasses.replace(p, actuators=act)
     return p
+
+
+def gnss_error(scenario: Scenario, own_length_m: float) -> tuple[float, float]:
+    """The synthetic transponders' GNSS error (position σ [m], velocity σ [m/s]) per axis:
+    the scenario's, or :data:`~asvtwin.twin.transponders.GNSS_POSITION_STD_M` and
+    :data:`~asvtwin.twin.transponders.GNSS_VELOCITY_STD_M_S` Froude-scaled to the own
+    ship's scale as the weather's wind is (lengths × s, speeds × √s, s = L / 87.85 m, at
+    most 1): a model-scale scene is a basin whose positions come from motion capture, not
+    a 4 m GNSS error on a 1.3 m hull."""
+    from asvtwin.twin.transponders import GNSS_POSITION_STD_M, GNSS_VELOCITY_STD_M_S
+    from asvtwin.twin.world import FULL_SCALE_REFERENCE_M
+
+    s = min(1.0, own_length_m / FULL_SCALE_REFERENCE_M)
+    a = scenario.ais
+    pos = GNSS_POSITION_STD_M * s if a.gnss_position_std_m is None else a.gnss_position_std_m
+    vel = (GNSS_VELOCITY_STD_M_S * math.sqrt(s) if a.gnss_velocity_std_m_s is None
+           else a.gnss_velocity_std_m_s)
+    return float(pos), float(vel)
 
 
 class Twin:
@@ -181,11 +199,11 @@ class Twin:
                            weather_wind=self._wind_from_weather(0.0),
                            pilot_period_s=1.0 / rates.controller_hz)
         t = self.world.table
+        gnss_std = gnss_error(scenario, self.params.length)
         self.transponders = Transponders(
             t.mmsi, t.ais_class, t.names, t.ship_type, t.length_m, t.beam_m,
             frame=self.scene.frame, epoch_unix_s=self.epoch_unix_s, rng=rng_ais,
-            position_std_m=scenario.ais.gnss_position_std_m,
-            velocity_std_m_s=scenario.ais.gnss_velocity_std_m_s)
+            position_std_m=gnss_std[0], velocity_std_m_s=gnss_std[1])
         self.ais_mode = scenario.ais.mode
         self._file_lines = self._open_ais_file() if self.ais_mode == "file" else None
         self.live: LiveAisFeed | None = None

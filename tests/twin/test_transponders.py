@@ -154,3 +154,19 @@ def test_gnss_error_must_be_finite_and_non_negative(scene):
     with pytest.raises(ParameterError, match="position_std_m must be finite and >= 0"):
         Transponders([1], ["A"], ["X"], [30], [20.0], [5.0], frame=scene.frame,
                      epoch_unix_s=0.0, rng=np.random.default_rng(1), position_std_m=-1.0)
+
+
+def test_gnss_error_is_froude_scaled_for_a_model_scale_own_ship():
+    """4 m / 0.05 m/s at full scale; a 1.255 m model gets 4 × 1.255/87.85 m = 5.7 cm and
+    0.05 √(1.255/87.85) m/s; a value in the scenario is taken as written."""
+    from asvtwin.twin.runtime import gnss_error
+
+    from .conftest import scenario
+
+    full = scenario()
+    assert gnss_error(full, 87.85) == pytest.approx((4.0, 0.05))
+    s = 1.255 / 87.85
+    assert gnss_error(full, 1.255) == pytest.approx((4.0 * s, 0.05 * math.sqrt(s)))
+    set_ = scenario(ais={"mode": "synthetic", "gnss_position_std_m": 2.5,
+                         "gnss_velocity_std_m_s": 0.0})
+    assert gnss_error(set_, 1.255) == (2.5, 0.0)
