@@ -169,3 +169,22 @@ def test_open_water_after_an_encounter_is_left_to_the_learner(hull):
     # nothing within OPEN_WATER_L ship lengths: the filter does not touch u_L
     assert r.open_water_interventions == 0, (r.open_water_interventions, OPEN_WATER_L)
     assert r.starboard is True  # the head-on part: rule 14
+
+
+def test_an_overtaking_in_sight_leaves_the_side_free(psf):
+    """Rule 13 leaves the side of an overtaking free: a head-on vessel asks for
+    starboard (warm start and ranking); with a slower vessel ahead on the same course
+    (the own ship overtaking) the warm start stays but the ranking does not force it."""
+    N, dt = psf.config.N, psf.config.dt_s
+    x = np.array([0.0, 0.0, 0.0, 0.3, 0.0, 0.0])
+    head_on = MovingObstacles.constant_velocity([[12.0, 0.2]], [[-0.3, 0.0]], [0.6], N=N,
+                                                dt_s=dt)
+    both = MovingObstacles.constant_velocity([[12.0, 0.2], [5.0, 0.0]],
+                                             [[-0.3, 0.0], [0.1, 0.0]], [0.6, 0.6], N=N,
+                                             dt_s=dt)
+    from asvtwin.control.obstacles import obstacle_labels, stage_circles
+
+    for obs, expected in ((head_on, (True, True)), (both, (True, False))):
+        centres, _, _ = stage_circles(obs, N)
+        _, moving = obstacle_labels(obs)
+        assert psf._starboard_expected(x, centres, moving) == expected
