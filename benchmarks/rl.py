@@ -81,6 +81,8 @@ def _psf_rate(pre_cull: bool, steps: int) -> tuple[float, dict[str, float], np.n
     env = VecPathEnv(8, EnvConfig(setup="ppo_psf_moving"), seed=0, pre_cull=pre_cull)
     pol = NumpyPolicy.load(default_policy_path())
     obs = env.reset_all()
+    env._may_need_filter()  # load the compiled kernels before timing
+    pol.act(obs)
     states = np.empty((steps, env.n, 6))
     totals = {"filter_calls": 0.0, "interventions": 0.0, "fallbacks": 0.0}
     t0 = time.perf_counter()
