@@ -181,6 +181,19 @@ def replay_memory(lines: list[bytes], log_path: Path, duration_s: float) -> dict
     }
 
 
+def _against_bare(n: int, wall: list[float], cpu: list[float], bare: list[float],
+                  bare_cpu: list[float]) -> dict[str, float]:
+    """Rates of one variant [lines/s] and its ratios to bare pyais, pair by pair."""
+    return {
+        "lines_per_s": round(n / statistics.median(wall)),
+        "lines_per_cpu_s": round(n / statistics.median(cpu)),
+        "overhead_ratio_median_of_pairs": round(statistics.median(
+            o / b for o, b in zip(wall, bare)), 3),
+        "cpu_overhead_ratio_median_of_pairs": round(statistics.median(
+            o / b for o, b in zip(cpu, bare_cpu)), 3),
+    }
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="smaller log, 10-minute replay")
@@ -243,23 +256,9 @@ def main() -> None:
         "cpu_overhead_ratio_median_of_pairs": round(statistics.median(
             o / b for o, b in zip(ours_cpu, bare_cpu)), 3),
         "store_bytes_per_report": round(db_bytes / n_reports, 1),
-        "without_store": {
-            "lines_per_s": round(n / statistics.median(nostore)),
-            "lines_per_cpu_s": round(n / statistics.median(nostore_cpu)),
-            "cpu_overhead_ratio_median_of_pairs": round(statistics.median(
-                o / b for o, b in zip(nostore_cpu, bare_cpu)), 3),
-            "overhead_ratio_median_of_pairs": round(statistics.median(
-                o / b for o, b in zip(nostore, bare)), 3),
-            "overhead_ratio_best_runs": round(min(nostore) / min(bare), 3),
-        },
-        "pyais_decode_path": {
-            "lines_per_s": round(n / statistics.median(slow)),
-            "lines_per_cpu_s": round(n / statistics.median(slow_cpu)),
-            "overhead_ratio_median_of_pairs": round(statistics.median(
-                o / b for o, b in zip(slow, bare)), 3),
-            "cpu_overhead_ratio_median_of_pairs": round(statistics.median(
-                o / b for o, b in zip(slow_cpu, bare_cpu)), 3),
-        },
+        "without_store": {**_against_bare(n, nostore, nostore_cpu, bare, bare_cpu),
+                          "overhead_ratio_best_runs": round(min(nostore) / min(bare), 3)},
+        "pyais_decode_path": _against_bare(n, slow, slow_cpu, bare, bare_cpu),
         "goal": {"lines_per_s": 20000, "overhead_ratio_max": 1.5},
         "repeats": args.repeats,
         "replay_memory": memory,

@@ -136,7 +136,7 @@ class LiveAisFeed:
             self._started.set()
             loop.run_until_complete(self._task)
         except asyncio.CancelledError:
-            pass
+            pass  # stop() cancelled the reader: the normal end of a live feed
         except Exception as exc:  # noqa: BLE001 - the feed's end is reported, not raised
             self.error = f"live AIS feed {self.url} stopped: {exc}"
             _log.warning("%s", self.error)

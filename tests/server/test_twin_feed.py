@@ -37,6 +37,13 @@ def wait_for(pred, timeout_s: float = 30.0, every_s: float = 0.1):
     raise AssertionError("condition not met in time")
 
 
+def stands_still(twin: Twin, dwell_s: float = 0.5) -> bool:
+    """True when the twin did not tick during ``dwell_s`` (it is paused)."""
+    k = twin.tick
+    time.sleep(dwell_s)
+    return twin.tick == k
+
+
 def ticks_per_s(twin: Twin, seconds: float) -> float:
     t0, n0 = time.perf_counter(), twin.tick
     time.sleep(seconds)
@@ -60,18 +67,14 @@ def test_live_twin_streams_and_obeys_controls(live):
     jsonschema.validate(s, json_schema())
     httpx.post(srv.url + "api/control/pause", json={}).raise_for_status()
     try:
-        def still() -> bool:
-            k = twin.tick
-            time.sleep(0.5)
-            return twin.tick == k
-        wait_for(still)  # paused: the twin's time stands still
+        wait_for(lambda: stands_still(twin))  # paused: the twin's time stands still
         t1 = snapshot(srv)["t_s"]
         time.sleep(0.5)
         assert snapshot(srv)["t_s"] == t1
         k = twin.tick
         httpx.post(srv.url + "api/control/step", json={"n_ticks": 4}).raise_for_status()
         wait_for(lambda: twin.tick > k)  # the step reached the twin's clock ...
-        wait_for(still)  # ... and it is paused again after it
+        wait_for(lambda: stands_still(twin))  # ... and it is paused again after it
     finally:
         httpx.post(srv.url + "api/control/resume", json={}).raise_for_status()
     httpx.post(srv.url + "api/control/filter", json={"enabled": False}).raise_for_status()
@@ -113,11 +116,7 @@ def test_a_client_connecting_to_a_paused_twin_gets_its_latest_snapshot(live):
     srv, twin = live
     httpx.post(srv.url + "api/control/pause", json={}).raise_for_status()
     try:
-        def still() -> bool:
-            k = twin.tick
-            time.sleep(0.5)
-            return twin.tick == k
-        wait_for(still)
+        wait_for(lambda: stands_still(twin))
         tick = twin.tick
         url = srv.url.replace("http", "ws") + "ws?rate_hz=10"
         with connect(url, max_size=None, open_timeout=30) as ws:
