@@ -27,12 +27,18 @@ from numpy.typing import NDArray
 
 from asvtwin.checks import F8 as _F8
 from asvtwin.control import SafetyFilter
+from asvtwin.control.certification import TERM_TOL
 from asvtwin.control.kernels import certify, rollout
 from asvtwin.control.obstacles import covariance_inflation
 
 __all__ = ["ULCertifier"]
 
-_TERM_TOL = 0.05  # the filter's terminal-ellipsoid tolerance (5 %)
+
+def _strictly_certified(low: float, term: float, finite: bool, margins: _F8) -> bool:
+    """The strict rule of both checks: finite, every margin ≥ 0 (no tolerance, no recovery
+    from a start inside d_safe), the end within the filter's terminal tolerance."""
+    return (finite and low >= 0.0 and term >= -TERM_TOL
+            and not (margins.shape[1] and margins[0].min() < 0.0))
 
 
 class ULCertifier:
@@ -111,8 +117,7 @@ class ULCertifier:
                         self.coef, self.dt_s, self.substeps, X)
                 low, term, finite = certify(X, np.ascontiguousarray(centres[f]), self.radii,
                                             segs, self.clear, self.P_f, margins)
-                if (finite and low >= 0.0 and term >= -_TERM_TOL
-                        and not (margins.shape[1] and margins[0].min() < 0.0)):
+                if _strictly_certified(low, term, finite, margins):
                     out[f] = True
                     plans[f] = U
                     break
@@ -135,7 +140,6 @@ class ULCertifier:
                     self.substeps, X)
             low, term, finite = certify(X, centres, self.radii, segs, self.clear, self.P_f,
                                         margins)
-            if (finite and low >= 0.0 and term >= -_TERM_TOL
-                    and not (margins.shape[1] and margins[0].min() < 0.0)):
+            if _strictly_certified(low, term, finite, margins):
                 return k
         return -1
