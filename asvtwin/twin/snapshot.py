@@ -346,7 +346,7 @@ def _schema_of(tp: Any, array_dims: int = 1) -> dict[str, Any]:
         return {"type": "array", "items": _schema_of(args[0])}
     if origin in (Mapping, dict) or tp in (Mapping, dict):
         return {"type": "object", "additionalProperties": {"type": "integer"}}
-    if dataclasses.is_dataclass(tp):
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp):  # a dataclass type, not an instance
         hints = typing.get_type_hints(tp)
         props = {f.name: _schema_of(hints[f.name], _array_dims(tp, f.name))
                  for f in dataclasses.fields(tp)}
