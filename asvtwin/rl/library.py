@@ -184,7 +184,7 @@ def library_encounters() -> tuple[list[LibraryEncounter], dict[str, str]]:
         req = sc.criteria.min_distance_targets_m
         fits.append(LibraryEncounter(
             name=name, scale=s, scenario=scen,
-            max_steps=int(math.ceil(sc.duration_s / sq)),
+            max_steps=math.ceil(sc.duration_s / sq),
             min_distance_m=float(req) if req is not None else math.nan))
     return fits, skipped
 

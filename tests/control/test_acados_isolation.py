@@ -34,6 +34,6 @@ def test_torch_runs_after_the_acados_filter_in_one_process():
         pytest.skip("acados extra not installed")
     pytest.importorskip("torch")
     proc = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True,
-                          timeout=600)
+                          timeout=600, check=False)
     assert proc.returncode == 0, f"exit {proc.returncode}\n{proc.stderr[-2000:]}"
     assert proc.stdout.split()[-1] == "64"

@@ -84,7 +84,7 @@ def test_filter_with_observer_keeps_d_safe_in_current(params, psf):
         cases = [(s, k) for s in range(100, 110) for k in CURRENT_KINDS]
     else:
         cases = [(s, k) for s in range(100, 105) for k in CURRENT_KINDS]
-    rows, table, a_ok, b_bad, fa, fb = _study(params, psf, cases)
+    rows, table, a_ok, _b_bad, fa, fb = _study(params, psf, cases)
     n = len(rows)
     d_safe = psf.d_safe_m
     msg = f"d_safe = {d_safe:.3f} m, backend {psf.backend.name}\n{table}"
