@@ -26,11 +26,31 @@ from __future__ import annotations
 import errno
 import logging
 import os
+import struct
+import zlib
+from collections import defaultdict
 from pathlib import Path
 from typing import IO, Any
 
 import orjson
-from mcap.writer import CompressionType, Writer
+import zstandard
+from mcap.data_stream import RecordBuilder
+from mcap.opcode import Opcode
+from mcap.records import (
+    Channel,
+    Chunk,
+    ChunkIndex,
+    DataEnd,
+    Footer,
+    Header,
+    Message,
+    MessageIndex,
+    Metadata,
+    MetadataIndex,
+    Schema,
+    Statistics,
+    SummaryOffset,
+)
 
 from asvtwin.twin.snapshot import SCHEMA_ID, json_schema
 
@@ -38,35 +58,156 @@ __all__ = ["METADATA_NAME", "TOPICS", "ZSTD_LEVEL", "Recorder"]
 
 _log = logging.getLogger(__name__)
 
-#: zstd level of the chunks. The mcap writer calls ``zstandard.compress`` at the library
-#: default (3); on the twin's snapshot stream level 1 is 5x faster for < 2 % more bytes
-#: (measured on 20 snapshots of the benchmark scene: 345 kB vs 350 kB of 1.1 MB, 13 ms vs
-#: 67 ms). Readers see ordinary zstd frames either way.
+#: zstd level of the chunks. The ``mcap`` package's writer (1.6) compresses its chunks with
+#: ``zstandard.compress`` at the library default (3) and has no option for the level; on the
+#: twin's snapshot stream level 1 is 3x faster for < 1 % more bytes (20 snapshots of the
+#: benchmark scene, 1.10 MB: 337 kB in 5.7 ms vs 339 kB in 16.6 ms of CPU). Readers see
+#: ordinary zstd frames either way.
 ZSTD_LEVEL = 1
 
-
-class _ZstdAtLevel:
-    """Stands in for the ``zstandard`` module inside ``mcap.writer`` so its chunks are
-    compressed at :data:`ZSTD_LEVEL`; everything else is the real module."""
-
-    def __init__(self, module: Any, level: int) -> None:
-        self._module = module
-        self._level = int(level)
-
-    def compress(self, data: bytes) -> bytes:
-        # a compressor per chunk: ZstdCompressor objects are not thread-safe, and two
-        # twins may record in two threads
-        return bytes(self._module.ZstdCompressor(level=self._level).compress(data))
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._module, name)
+#: The magic bytes that open and close an MCAP file (MCAP specification, "Magic").
+_MAGIC = b"\x89MCAP0\r\n"
 
 
-def _use_fast_zstd() -> None:
-    import mcap.writer as mw
+class _ChunkedWriter:
+    """An MCAP writer whose zstd chunks are compressed at a level of its own.
 
-    if mw.zstandard is not None and not isinstance(mw.zstandard, _ZstdAtLevel):
-        mw.zstandard = _ZstdAtLevel(mw.zstandard, ZSTD_LEVEL)  # type: ignore[assignment]
+    The ``mcap`` package writes its chunks through a module-level call with no level
+    option; rather than patch that module for every writer in the process, this writer
+    lays out the file itself from the package's record classes (``mcap.records``, each of
+    which serialises itself): magic, header, metadata, zstd chunks (schemas and channels in
+    the first, as ``mcap.writer.Writer`` puts them) each followed by its message indexes,
+    data end, a summary (schemas, channels, statistics, chunk and metadata indexes, summary
+    offsets), the footer with the summary's CRC, magic. Files read back with
+    ``mcap.reader.make_reader`` (seeking and streaming) and ``asvtwin replay``.
+    """
+
+    def __init__(self, stream: Any, *, chunk_size: int, level: int) -> None:
+        self._out = stream
+        self._chunk_size = int(chunk_size)
+        self._zstd = zstandard.ZstdCompressor(level=int(level))
+        self._pos = 0  # bytes handed to the stream (it may not support tell())
+        self._schemas: list[Schema] = []
+        self._channels: list[Channel] = []
+        self._chunk = RecordBuilder()
+        self._chunk_messages = 0
+        self._chunk_t: tuple[int, int] = (0, 0)
+        self._msg_index: dict[int, MessageIndex] = {}
+        self._chunk_indexes: list[ChunkIndex] = []
+        self._meta_indexes: list[MetadataIndex] = []
+        self._stats = Statistics(attachment_count=0, channel_count=0,
+                                 channel_message_counts=defaultdict(int), chunk_count=0,
+                                 message_count=0, message_end_time=0, message_start_time=0,
+                                 metadata_count=0, schema_count=0)
+
+    def _write(self, data: bytes) -> None:
+        self._out.write(data)
+        self._pos += len(data)
+
+    @staticmethod
+    def _bytes(*records: Any) -> bytes:
+        b = RecordBuilder()
+        for r in records:
+            r.write(b)
+        return bytes(b.end())
+
+    def start(self, *, library: str) -> None:
+        self._write(_MAGIC + self._bytes(Header(profile="", library=library)))
+
+    def register_schema(self, name: str, encoding: str, data: bytes) -> int:
+        s = Schema(id=len(self._schemas) + 1, data=data, encoding=encoding, name=name)
+        self._schemas.append(s)
+        self._stats.schema_count += 1
+        s.write(self._chunk)
+        return s.id
+
+    def register_channel(self, topic: str, message_encoding: str, schema_id: int) -> int:
+        c = Channel(id=len(self._channels) + 1, topic=topic, message_encoding=message_encoding,
+                    schema_id=schema_id, metadata={})
+        self._channels.append(c)
+        self._stats.channel_count += 1
+        c.write(self._chunk)
+        return c.id
+
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        rec = self._bytes(Metadata(name=name, metadata=data))
+        self._meta_indexes.append(MetadataIndex(offset=self._pos, length=len(rec), name=name))
+        self._stats.metadata_count += 1
+        self._write(rec)
+
+    def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
+                    sequence: int) -> None:
+        st = self._stats
+        t0, t1 = self._chunk_t
+        self._chunk_t = ((log_time, log_time) if self._chunk_messages == 0
+                         else (min(t0, log_time), max(t1, log_time)))
+        st.message_start_time = (log_time if st.message_count == 0
+                                 else min(st.message_start_time, log_time))
+        st.message_end_time = max(st.message_end_time, log_time)
+        st.message_count += 1
+        st.channel_message_counts[channel_id] += 1
+        idx = self._msg_index.get(channel_id)
+        if idx is None:
+            idx = self._msg_index[channel_id] = MessageIndex(channel_id=channel_id, records=[])
+        idx.records.append((log_time, self._chunk.count))
+        Message(channel_id=channel_id, log_time=log_time, data=data, publish_time=publish_time,
+                sequence=sequence).write(self._chunk)
+        self._chunk_messages += 1
+        if self._chunk.count > self._chunk_size:
+            self._finish_chunk()
+
+    def _finish_chunk(self) -> None:
+        if self._chunk_messages == 0:
+            return
+        raw = bytes(self._chunk.end())
+        packed = self._zstd.compress(raw)
+        t0, t1 = self._chunk_t
+        chunk = self._bytes(Chunk(compression="zstd", data=packed, message_start_time=t0,
+                                  message_end_time=t1, uncompressed_crc=zlib.crc32(raw),
+                                  uncompressed_size=len(raw)))
+        start = self._pos
+        offsets, index = {}, RecordBuilder()
+        for cid, mi in self._msg_index.items():
+            offsets[cid] = start + len(chunk) + index.count
+            mi.write(index)
+        indexes = bytes(index.end())
+        # the chunk and its message indexes in one write: a full disk leaves either both or
+        # a damaged tail that readers skip
+        self._write(chunk + indexes)
+        self._chunk_indexes.append(ChunkIndex(
+            message_start_time=t0, message_end_time=t1, chunk_start_offset=start,
+            chunk_length=len(chunk), message_index_offsets=offsets,
+            message_index_length=len(indexes), compression="zstd",
+            compressed_size=len(packed), uncompressed_size=len(raw)))
+        self._stats.chunk_count += 1
+        self._chunk_messages = 0
+        self._msg_index = {}
+
+    def finish(self) -> None:
+        self._finish_chunk()
+        self._write(self._bytes(DataEnd(data_section_crc=0)))
+        summary_start = self._pos
+        groups: list[tuple[int, list[Any]]] = [
+            (Opcode.SCHEMA, list(self._schemas)), (Opcode.CHANNEL, list(self._channels)),
+            (Opcode.STATISTICS, [self._stats]), (Opcode.CHUNK_INDEX, self._chunk_indexes),
+            (Opcode.METADATA_INDEX, self._meta_indexes)]
+        body = RecordBuilder()
+        offsets = []
+        for opcode, records in groups:
+            g0 = body.count
+            for r in records:
+                r.write(body)
+            offsets.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + g0,
+                                         group_length=body.count - g0))
+        offset_start = summary_start + body.count
+        for o in offsets:
+            o.write(body)
+        summary = bytes(body.end())
+        crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 20, summary_start, offset_start),
+                         zlib.crc32(summary))
+        self._write(summary + self._bytes(Footer(summary_start=summary_start,
+                                                 summary_offset_start=offset_start,
+                                                 summary_crc=crc)) + _MAGIC)
 
 #: The metadata record's name.
 METADATA_NAME = "asvtwin.run"
@@ -155,12 +296,10 @@ class Recorder:
         self.messages = 0
         self.closed = False
         self._seq = 0
-        self._writer: Writer | None = None
-        _use_fast_zstd()
+        self._writer: _ChunkedWriter | None = None
         try:
-            w = Writer(self._stream, chunk_size=int(chunk_size),  # type: ignore[arg-type]
-                       compression=CompressionType.ZSTD)
-            w.start(profile="", library="asvtwin")
+            w = _ChunkedWriter(self._stream, chunk_size=int(chunk_size), level=ZSTD_LEVEL)
+            w.start(library="asvtwin")
             self._channels: dict[str, int] = {}
             for topic, (name, schema) in TOPICS.items():
                 sid = w.register_schema(name=name, encoding="jsonschema",

@@ -127,3 +127,80 @@ def test_not_a_recording(tmp_path):
     p.write_bytes(b"hello world, not mcap at all" * 10)
     with pytest.raises(SourceError, match="metadata"):
         Recording(p)
+
+
+def test_own_chunk_writer_matches_the_mcap_writer_and_leaves_it_alone(tmp_path):
+    """The recorder lays out its chunks itself (zstd at ZSTD_LEVEL): the file must read
+    back, CRCs checked, exactly as the same messages written by ``mcap``'s own Writer do,
+    and the ``mcap`` package is left untouched for every other writer in the process."""
+    import mcap.writer as mw
+    import zstandard
+    from mcap.stream_reader import StreamReader
+
+    from asvtwin.twin.recorder import ZSTD_LEVEL
+
+    ours = tmp_path / "ours.mcap"
+    rec = Recorder(ours, scenario_json='{"name": "x"}', seed=3, epoch_unix_s=EPOCH,
+                   chunk_size=4096)
+    _write(rec, 300)
+    rec.close()
+    assert mw.zstandard is zstandard  # no module patched
+
+    # the reference: the same records through mcap's Writer (library default level)
+    ref = tmp_path / "ref.mcap"
+    with open(ref, "wb") as f:
+        w = mw.Writer(f, chunk_size=4096, compression=mw.CompressionType.ZSTD)
+        w.start(profile="", library="asvtwin")
+        for topic, (name, schema) in TOPICS.items():
+            sid = w.register_schema(name=name, encoding="jsonschema", data=orjson.dumps(schema))
+            w.register_channel(topic=topic, message_encoding="json", schema_id=sid)
+        with open(ours, "rb") as g:
+            for md in make_reader(g).iter_metadata():
+                w.add_metadata(md.name, md.metadata)
+            g.seek(0)
+            for _, _, m in make_reader(g).iter_messages():
+                w.add_message(m.channel_id, m.log_time, m.data, m.publish_time, m.sequence)
+        w.finish()
+
+    def content(path):
+        with open(path, "rb") as f:
+            r = make_reader(f, validate_crcs=True)
+            s = r.get_summary()
+            msgs = [(c.topic, m.log_time, m.sequence, m.data) for _, c, m in r.iter_messages()]
+            rev = [m.log_time for _, _, m in r.iter_messages(reverse=True)]
+            meta = [(md.name, md.metadata) for md in r.iter_metadata()]
+        with open(path, "rb") as f:  # front to back, as a tool without the index reads it
+            streamed = [(m.log_time, m.data) for m in StreamReader(f, validate_crcs=True,
+                                                                  skip_magic=False).records
+                        if type(m).__name__ == "Message"]
+        return s, msgs, rev, streamed, meta
+
+    s1, m1, rev1, st1, md1 = content(ours)
+    s2, m2, rev2, st2, md2 = content(ref)
+    assert md1 == md2 and md1[0][1]["seed"] == "3"
+    assert len(m1) == 330 and m1 == m2 and rev1 == rev2 == sorted(rev1, reverse=True)
+    assert st1 == st2 == [(t, d) for _, t, _, d in m1]
+    assert s1.statistics == s2.statistics
+    assert [(c.topic, c.schema_id) for c in s1.channels.values()] == \
+        [(c.topic, c.schema_id) for c in s2.channels.values()]
+    assert {k: (v.name, v.data) for k, v in s1.schemas.items()} == \
+        {k: (v.name, v.data) for k, v in s2.schemas.items()}
+    assert len(s1.chunk_indexes) == len(s2.chunk_indexes) > 10
+    for a, b in zip(s1.chunk_indexes, s2.chunk_indexes, strict=True):
+        assert (a.message_start_time, a.message_end_time, a.uncompressed_size,
+                a.compression) == (b.message_start_time, b.message_end_time,
+                                   b.uncompressed_size, "zstd")
+    # every chunk holds zstd at ZSTD_LEVEL: recompressing its content gives its bytes
+    with open(ours, "rb") as f:
+        data = f.read()
+    assert ZSTD_LEVEL == 1
+    at_default = []
+    for ci in s1.chunk_indexes:
+        with open(ours, "rb") as f:
+            f.seek(ci.chunk_start_offset)
+            rec0 = next(iter(StreamReader(f, skip_magic=True, emit_chunks=True).records))
+        raw = zstandard.ZstdDecompressor().decompress(rec0.data)
+        assert zstandard.ZstdCompressor(level=ZSTD_LEVEL).compress(raw) == rec0.data
+        at_default.append(zstandard.compress(raw) == rec0.data)
+    assert not all(at_default)  # (the check tells level 1 from the library's default 3)
+    assert data.endswith(b"\x89MCAP0\r\n")
