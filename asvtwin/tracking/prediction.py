@@ -22,6 +22,7 @@ Two outputs:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -71,6 +72,25 @@ def _times(t0_s: float, times_s: ArrayLike) -> _F8:
     return t
 
 
+_COV_PATHS: dict[tuple[tuple[int, ...], tuple[int, ...]], list[Any]] = {}
+
+
+def _cov_path(a_shape: tuple[int, ...], p_shape: tuple[int, ...]) -> list[Any]:
+    """The contraction order of ``A P Aᵀ`` that ``einsum(..., optimize=True)`` picks for
+    these shapes (the BLAS path: 10x faster than the naive loop), searched once per shape:
+    the search cost 40 % of the prediction of 36 tracks. The same order, so the same
+    numbers."""
+    key = (a_shape, p_shape)
+    path = _COV_PATHS.get(key)
+    if path is None:
+        if len(_COV_PATHS) >= 512:  # (shapes: prediction times x track counts seen)
+            _COV_PATHS.clear()
+        path = np.einsum_path("tij,njk,tlk->ntil", np.empty(a_shape), np.empty(p_shape),
+                              np.empty(a_shape), optimize=True)[0]
+        _COV_PATHS[key] = path
+    return path
+
+
 def predict_tracks(mean: ArrayLike, cov: ArrayLike, t0_s: float, times_s: ArrayLike, q: float) -> TrackPrediction:
     """Propagate track means and covariances with the CV model (closed form per time).
 
@@ -101,7 +121,7 @@ def predict_tracks(mean: ArrayLike, cov: ArrayLike, t0_s: float, times_s: ArrayL
     Q = cv_process_noise(tau, q)
     # x(τ) = A(τ) x0 ; P(τ) = A(τ) P0 A(τ)^T + Q(τ)
     xm = np.einsum("tij,nj->nti", A, x)
-    Pm = np.einsum("tij,njk,tlk->ntil", A, P, A, optimize=True) + Q[None]  # BLAS path: 10x
+    Pm = np.einsum("tij,njk,tlk->ntil", A, P, A, optimize=_cov_path(A.shape, P.shape)) + Q[None]
     return TrackPrediction(times_s=t, mean=xm, cov=0.5 * (Pm + Pm.swapaxes(-1, -2)))
 
 

@@ -111,11 +111,11 @@ class TargetPilots:
         for _ in range(3):  # leg switching (a few legs per step at most)
             kk = np.minimum(self.k, self.n_wp - 1)
             a, b = self.routes[rows, kk - 1], self.routes[rows, kk]
-            _, _, along, leg = los_steer(x[:, :2], a, b, 2.5 * self.length)
+            chi, _, along, leg = los_steer(x[:, :2], a, b, 2.5 * self.length)
             dist = np.hypot(b[:, 0] - x[:, 0], b[:, 1] - x[:, 1])
             switch = has & ((dist <= R) | (along >= leg - R))
-            if not switch.any():
-                break
+            if not switch.any():  # the legs are settled: chi is the course on them
+                return np.where(has, chi, self.course), has
             self.k[switch] += 1
             wrap = switch & self.loop & (self.k >= self.n_wp)
             self.k[wrap] = 1
@@ -124,6 +124,7 @@ class TargetPilots:
                 d = b[ended] - a[ended]
                 self.course[ended] = np.arctan2(d[:, 1], d[:, 0])
             has = (self.n_wp >= 2) & (self.k < self.n_wp)
+        # still switching after three legs: steer on the legs reached
         kk = np.minimum(self.k, self.n_wp - 1)
         chi, _, _, _ = los_steer(x[:, :2], self.routes[rows, np.maximum(kk - 1, 0)],
                                  self.routes[rows, kk], 2.5 * self.length)

@@ -74,3 +74,22 @@ def test_safety_prediction_is_plain_and_conservative() -> None:
         predictions_for_safety(s, times, covariance_inflation=0.5)
     with pytest.raises(ParameterError, match="times_s"):
         predictions_for_safety(s, [5.0, 10.0])
+
+
+def test_cached_contraction_order_gives_the_searched_result_for_every_shape():
+    """predict_tracks reuses the einsum contraction order per shape (the search cost 40 %
+    of a call): the covariances must equal einsum(optimize=True) exactly, for track counts
+    and horizons whose best order differs (1 and 36 tracks do), in any call order."""
+    from asvtwin.tracking.kalman import cv_process_noise, cv_transition
+
+    rng = np.random.default_rng(3)
+    for n, k in [(36, 7), (1, 7), (5, 25), (36, 7), (1, 1), (90, 13), (5, 25)]:
+        x = rng.normal(size=(n, 4))
+        L = rng.normal(size=(n, 4, 4))
+        P = L @ L.swapaxes(-1, -2)
+        t = np.linspace(3.0, 120.0, k)
+        pred = predict_tracks(x, P, 2.0, t, 0.05)
+        A = cv_transition(t - 2.0)
+        ref = np.einsum("tij,njk,tlk->ntil", A, P, A, optimize=True) + \
+            cv_process_noise(t - 2.0, 0.05)[None]
+        assert np.array_equal(pred.cov, 0.5 * (ref + ref.swapaxes(-1, -2))), (n, k)
