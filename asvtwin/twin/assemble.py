@@ -46,9 +46,8 @@ def cpa_tcpa(p_own: _F8, v_own: _F8, p: _F8, v: _F8) -> tuple[_F8, _F8]:
     with np.errstate(invalid="ignore", divide="ignore"):
         t = -np.sum(dp * dv, axis=1) / vv
     ok = (vv > 1e-12) & (t >= 0)
-    t = np.where(ok, t, np.nan)
-    cpa = np.hypot(*(dp + np.nan_to_num(t)[:, None] * dv).T)
-    return np.where(ok, cpa, np.nan), t
+    cpa = np.hypot(*(dp + np.where(ok, t, 0.0)[:, None] * dv).T)
+    return np.where(ok, cpa, np.nan), np.where(ok, t, np.nan)
 
 
 def ais_part(ts: TargetSnapshot, frame: LocalFrame) -> AisTargets:
