@@ -146,7 +146,9 @@ class VecPathEnv:
         if cfg.setup != "ppo":
             from asvtwin.control import PsfConfig, SafetyFilter
 
-            pc = PsfConfig(N=cfg.psf_horizon, backend=cfg.psf_backend)
+            # no coast in this world: no segment slots (each slot costs every QP iteration)
+            pc = PsfConfig(N=cfg.psf_horizon, backend=cfg.psf_backend,
+                           n_circles=cfg.psf_solver_circles, n_segments=0)
             self.filters = [SafetyFilter(self.params, config=pc) for _ in range(n)]
             f0 = self.filters[0]
             # the farthest the ship gets over the horizon plus the clearance it needs

@@ -200,3 +200,32 @@ def test_batched_pre_cull_never_skips_an_environment_the_filter_needs(setup: str
             else:
                 skipped += not need[i]
     assert kept > 20 and skipped > 20, (kept, skipped)
+
+
+def test_filter_with_fewer_solver_slots_than_circles_keeps_d_safe_from_all() -> None:
+    """The RL world gives the filter's OCP 8 circle slots and no coast slots
+    (``EnvConfig.psf_solver_circles``); a ship heading into a static obstacle sees far
+    more LiDAR circles than that. Whatever the filter applies is a plan that keeps
+    d_safe from *every* circle (checked here by plain distances, not by the filter's own
+    certification) or, failing that, a checked fallback."""
+    env = VecPathEnv(1, EnvConfig(setup="ppo_psf", psf_horizon=40), seed=0)
+    f = env.filters[0]
+    assert (f.spec.n_circles, f.spec.n_segments) == (8, 0)
+    psi = env.x[0, 2]
+    ahead = np.array([np.cos(psi), np.sin(psi)])
+    env.static[0, 0] = (*(env.x[0, :2] + 22.0 * ahead), 12.0)  # 10 m ahead, 12 m radius
+    env._sense(np.array([0]))
+    applied = 0
+    for _ in range(6):
+        obs = env._filter_obstacles(0)
+        centres = np.concatenate([o.centres for o in obs])
+        radii = np.concatenate([o.radii for o in obs])
+        assert len(radii) > f.spec.n_circles
+        res = f.filter(env.x[0], np.array([2.0, 0.0, 0.0]), obs, t_s=float(env.t_s[0]))
+        if res.fallback == "none":
+            gap = (np.hypot(*(res.x_pred[1:, None, :2] - centres[None]).transpose(2, 0, 1))
+                   - radii[None])
+            assert gap.min() >= f.d_safe_m - f.certify_tol_m, gap.min()
+            applied += 1
+        env.step(np.array([[1.0, 0.0]]))
+    assert applied >= 1

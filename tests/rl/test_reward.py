@@ -79,6 +79,8 @@ def test_bad_setup_and_configs() -> None:
         check_setup("dqn")
     with pytest.raises(ConfigError, match="EnvConfig.family"):
         EnvConfig(family="harbour")
+    with pytest.raises(ConfigError, match="EnvConfig.psf_solver_circles"):
+        EnvConfig(psf_solver_circles=0)
     with pytest.raises(ConfigError, match="PpoConfig.gamma"):
         PpoConfig(gamma=1.5)
     with pytest.raises(ConfigError, match="does not fit EnvConfig"):
