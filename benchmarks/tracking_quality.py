@@ -23,7 +23,7 @@ bounds (the samples of one track are correlated in time, so the bounds use one s
 target's track id changing); MMSI swaps (an MMSI on a track following another vessel);
 false confirmed tracks per hour (confirmed tracks never matched to a vessel); lost tracks
 per hour (matched tracks deleted while their vessel was in view). Run:
-``python benchmarks/tracking_quality.py [--quick]``; prints one JSON object.
+``python benchmarks/tracking_quality.py [--quick] [--first-seed S] [--seeds N]``; prints one JSON object.
 """
 
 from __future__ import annotations
@@ -159,11 +159,15 @@ def main() -> None:
     ap.add_argument("--fusion", default=TrackerConfig().fusion)
     ap.add_argument("--depth-persistence", type=float, default=TrackerConfig().lidar.depth_persistence,
                     help="LidarModel.depth_persistence of the tracker (scans)")
+    ap.add_argument("--seeds", type=int, default=None, help="seeds per scene (default 4, --quick 2)")
     ap.add_argument("--first-seed", type=int, default=0,
                     help="first seed of each scene (default 0; the tracker's settings were chosen on seeds "
                          "0-3, so a held-out check uses e.g. --first-seed 100)")
     args = ap.parse_args()
-    seeds = range(args.first_seed, args.first_seed + (2 if args.quick else 4))
+    count = args.seeds if args.seeds is not None else (2 if args.quick else 4)
+    if count < 1:
+        ap.error(f"--seeds must be >= 1, actually: {count}")
+    seeds = range(args.first_seed, args.first_seed + count)
     t0 = time.perf_counter()
     kinds = ("open_sea", "close_pairs", "coast_layout_open", "near_coast", "near_coast_no_band")
     res = {k: run_set(k, seeds, args.fusion, args.depth_persistence) for k in kinds}

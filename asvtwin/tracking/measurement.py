@@ -69,6 +69,7 @@ __all__ = [
     "LidarModel",
     "ais_measurements",
     "hull_centres",
+    "hull_centres_for_pairs",
     "lidar_measurements",
 ]
 
@@ -320,6 +321,37 @@ def hull_centres(clusters: Clusters, heading_rad: ArrayLike, heading_std_rad: Ar
     z, R, ext, _ = hull_box_kernel(points, offsets, origin, h, hs, _end_shadows(clusters), _hull_prm(mdl),
                                    only_known)
     return z, R, ext
+
+
+def hull_centres_for_pairs(clusters: Clusters, cols: NDArray[np.int64], heading_rad: _F8, heading_std_rad: _F8,
+                           model: LidarModel | None = None) -> tuple[_F8, _F8, _F8]:
+    """Hull-centre measurements of cluster ``cols[p]`` with hull axis ``heading_rad[p]``, one
+    per (track, cluster) pair: a cluster in the gate of two tracks is measured once with
+    each one's course (its centre depends on the hull axis assumed).
+
+    Returns
+    -------
+    z : ndarray, shape (p, 2)
+    R_update : ndarray, shape (p, 2, 2)
+        Covariance with the unseen depth scaled by ``depth_persistence`` (for the filter).
+    R : ndarray, shape (p, 2, 2)
+        Single-scan covariance (for gates).
+    """
+    mdl = model or LidarModel()
+    cols = np.asarray(cols, np.int64)
+    off = np.asarray(clusters.offsets, np.int64)
+    sizes = off[cols + 1] - off[cols]
+    new_off = np.zeros(cols.size + 1, np.int64)
+    np.cumsum(sizes, out=new_off[1:])
+    # gather the pairs' points: cluster cols[p]'s returns at new_off[p]:new_off[p + 1]
+    idx = np.arange(new_off[-1], dtype=np.int64) + np.repeat(off[cols] - new_off[:-1], sizes)
+    points = np.ascontiguousarray(np.asarray(clusters.points, np.float64).reshape(-1, 2)[idx])
+    origin = np.asarray(clusters.origin_ned, dtype=np.float64).reshape(2)
+    h = np.array(heading_rad, np.float64).reshape(cols.size)
+    hs = np.maximum(np.asarray(heading_std_rad, np.float64).reshape(cols.size), mdl.heading_floor_rad)
+    shadow = np.ascontiguousarray(_end_shadows(clusters)[cols])
+    z, Ru, _, R = hull_box_kernel(points, new_off, origin, h, hs, shadow, _hull_prm(mdl), False)
+    return z, Ru, R
 
 
 def lidar_measurements(clusters: Clusters, model: LidarModel | None = None) -> LidarMeasurements:

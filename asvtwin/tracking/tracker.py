@@ -49,8 +49,9 @@ from asvtwin.tracking.kalman import H_FULL, H_POSITION, _predict_kernel
 from asvtwin.tracking.measurement import (
     AisMeasurement,
     AisMeasurementBatch,
+    LidarMeasurements,
     ais_measurements,
-    hull_centres,
+    hull_centres_for_pairs,
     lidar_measurements,
 )
 from asvtwin.tracking.snapshot import TrackSnapshot
@@ -209,11 +210,15 @@ class Tracker:
                 m = lidar_measurements(cl, cfg.lidar)
                 self._count("fit_fallbacks", int((~m.used_fit).sum()))
                 cost = gated_costs(a["x"][:, :2], a["P"][:, :2, :2], m.z, m.R, self._gL)[0]
-                self._ais_identity_gate(t, cost, m.z, m.R)
+                ti, cj, zp, Rp, Rpu, with_course = self._pair_measurements(cl, cost, m)
+                self._ais_identity_gate(t, cost, ti, cj, zp, Rp)
                 rows, cols = gnn_assign(cost)
                 a["gotL"][rows] = True
-                zm, Rm = self._remeasure_with_course(cl, m.z, m.R if m.R_update is None else m.R_update, rows, cols)
-                zL[rows], RL[rows] = zm[cols], Rm[cols]
+                pair = np.full(cost.shape, -1, np.int64)
+                pair[ti, cj] = np.arange(ti.size)
+                p = pair[rows, cols]
+                zL[rows], RL[rows] = zp[p], Rpu[p]
+                self._count("lidar_with_course", int(with_course[p].sum()))
                 self.last_nis["lidar"] = position_mahalanobis(zL[rows] - a["x"][rows, :2], a["P"][rows, :2, :2],
                                                               RL[rows])
                 good = m.used_fit[cols] & (m.fits.arc_coverage_rad[cols] >= 0.5 * np.pi)
@@ -378,50 +383,68 @@ class Tracker:
         self._count("init_coast_band", int(out.sum()))
         return out
 
-    def _ais_identity_gate(self, t: float, cost: _F8, z: _F8, R: _F8) -> None:
+    def _ais_identity_gate(self, t: float, cost: _F8, ti: NDArray[np.int64], cj: NDArray[np.int64], zp: _F8,
+                           Rp: _F8) -> None:
         """The AIS identity is evidence: a track tied to an MMSI takes a LiDAR cluster only
-        if the cluster is also consistent with the track's own AIS-only estimate (its
+        if the cluster (measured with that track's course: ``zp``, ``Rp`` of the gated pairs
+        ``ti``, ``cj``) is also consistent with the track's own AIS-only estimate (its
         reports aged to ``t``), so LiDAR alone cannot drag an MMSI onto a neighbour."""
         a, cfg = self._a, self.config
-        tied = np.flatnonzero((a["mmsi"] >= 0) & a["hasA"] & (t - a["tA"] <= cfg.max_coast_ais_s))
-        if tied.size == 0 or cost.shape[1] == 0:
+        sel = np.flatnonzero((a["mmsi"][ti] >= 0) & a["hasA"][ti] & (t - a["tA"][ti] <= cfg.max_coast_ais_s))
+        if sel.size == 0:
             return
-        ti, cj = np.nonzero(cost[tied] < FORBIDDEN)
-        if ti.size == 0:
-            return
-        ti = tied[ti]
-        d2 = position_mahalanobis(z[cj] - a["xA"][ti, :2], np.ascontiguousarray(a["PA"][ti, :2, :2]), R[cj])
-        bad = d2 > self._gA_id
+        r = ti[sel]
+        d2 = position_mahalanobis(zp[sel] - a["xA"][r, :2], np.ascontiguousarray(a["PA"][r, :2, :2]), Rp[sel])
+        bad = (d2 > self._gA_id) & (cost[r, cj[sel]] < FORBIDDEN)
         if bad.any():
-            cost[ti[bad], cj[bad]] = FORBIDDEN
+            cost[r[bad], cj[sel][bad]] = FORBIDDEN
             self._count("lidar_vetoed_by_ais", int(bad.sum()))
 
-    def _remeasure_with_course(self, cl: Clusters, z: _F8, R: _F8, rows: NDArray[np.int64],
-                               cols: NDArray[np.int64]) -> tuple[_F8, _F8]:
-        """Hull-centre measurements of associated clusters with their track's course as the
-        hull axis (the aspect is then known: :mod:`asvtwin.tracking.hull_model`)."""
-        cfg = self.config
-        if cfg.lidar.centre != "hull_box" or rows.size == 0 or not np.isfinite(cl.origin_ned).all():
-            return z, R  # (clusters without the sensor position keep the fitted centre)
-        v = self._a["x"][rows, 2:]
-        Pv = self._a["P"][rows, 2:, 2:]
+    def _pair_measurements(self, cl: Clusters, cost: _F8, m: LidarMeasurements) -> tuple[
+            NDArray[np.int64], NDArray[np.int64], _F8, _F8, _F8, NDArray[np.bool_]]:
+        """The measurement of every gated (track, cluster) pair, and the pair's cost again.
+
+        A cluster is first measured without a hull axis (a wide, honest covariance: a
+        flank seen broadside could be a stern, so the centre may lie deep behind it).
+        Inside a track's gate it is measured again with that track's course as the hull
+        axis (:mod:`asvtwin.tracking.hull_model`), and the pair's gate and cost use *that*
+        measurement. With the axis-free one, the near hull of two abreast vessels was
+        measured between them and taken by the far vessel's track (an MMSI swap); with its
+        course, the same cluster is where the near hull is.
+
+        Returns the pairs ``ti``, ``cj``, their ``z``, single-scan ``R`` (gates),
+        ``R_update`` (the filter) and whether the course was used; ``cost`` is updated in
+        place (pairs that leave the gate become :data:`FORBIDDEN`).
+        """
+        a, cfg = self._a, self.config
+        ti, cj = np.nonzero(cost < FORBIDDEN)
+        ti, cj = ti.astype(np.int64), cj.astype(np.int64)
+        Ru = m.R if m.R_update is None else m.R_update
+        zp, Rp, Rpu = m.z[cj], m.R[cj], Ru[cj]
+        with_course = np.zeros(ti.size, bool)
+        if cfg.lidar.centre != "hull_box" or ti.size == 0 or not np.isfinite(cl.origin_ned).all():
+            return ti, cj, zp, Rp, Rpu, with_course  # (clusters without the sensor position keep the fitted centre)
+        v = a["x"][ti, 2:]
+        Pv = a["P"][ti, 2:, 2:]
         sp2 = (v * v).sum(axis=1)
         # var ψ = (v_e² P_nn − 2 v_n v_e P_ne + v_n² P_ee) / |v|⁴ (course of the CV velocity)
         var = (v[:, 1] ** 2 * Pv[:, 0, 0] - 2.0 * v[:, 0] * v[:, 1] * Pv[:, 0, 1] + v[:, 0] ** 2 * Pv[:, 1, 1])
         var = var / np.maximum(sp2, 1e-12) ** 2
         ok = (sp2 >= cfg.course_min_speed_m_s ** 2) & (var <= cfg.course_max_std_rad ** 2)
         if not ok.any():
-            return z, R
-        k = len(z)
-        hd, hs = np.full(k, np.nan), np.zeros(k)
-        hd[cols[ok]] = np.arctan2(v[ok, 1], v[ok, 0])
-        hs[cols[ok]] = np.sqrt(var[ok])
-        z2, R2, _ = hull_centres(cl, hd, hs, cfg.lidar, only_known=True)
-        sel = cols[ok]
-        z, R = z.copy(), R.copy()
-        z[sel], R[sel] = z2[sel], R2[sel]
-        self._count("lidar_with_course", int(sel.size))
-        return z, R
+            return ti, cj, zp, Rp, Rpu, with_course
+        k = np.flatnonzero(ok)
+        z2, Ru2, R2 = hull_centres_for_pairs(cl, cj[k], np.arctan2(v[k, 1], v[k, 0]), np.sqrt(var[k]), cfg.lidar)
+        zp[k], Rp[k], Rpu[k] = z2, R2, Ru2
+        with_course[k] = True
+        # the pair's gate and cost with its own measurement (the arithmetic of gated_costs)
+        r = ti[k]
+        d2 = position_mahalanobis(z2 - a["x"][r, :2], np.ascontiguousarray(a["P"][r, :2, :2]), R2)
+        S = a["P"][r, :2, :2] + R2
+        det = S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] * S[:, 1, 0]
+        inside = d2 <= self._gL
+        cost[r, cj[k]] = np.where(inside, d2 + np.log(np.where(inside, det, 1.0)), FORBIDDEN)
+        return ti, cj, zp, Rp, Rpu, with_course
 
     def _update_sensor_filters(self, zL: _F8, RL: _F8, zA: _F8, RA: _F8) -> None:
         a, t = self._a, self._t
