@@ -51,7 +51,13 @@ from asvtwin.sources.ais.source import tag_time
 from asvtwin.sources.weather import OfflineWeatherSource, WeatherForecast
 from asvtwin.twin import assemble
 from asvtwin.twin.clock import Clock
-from asvtwin.twin.components import AisInput, DisturbanceEstimator, FilterStage, Perception
+from asvtwin.twin.components import (
+    AisInput,
+    DisturbanceEstimator,
+    FilterStage,
+    Perception,
+    tracker_config,
+)
 from asvtwin.twin.controllers import (
     GuidanceStatus,
     ManualController,
@@ -73,7 +79,7 @@ from asvtwin.twin.snapshot import (
 )
 from asvtwin.twin.summary import RunMetrics, RunSummary
 from asvtwin.twin.transponders import Transponders
-from asvtwin.twin.world import World
+from asvtwin.twin.world import FULL_SCALE_REFERENCE_M, World
 from asvtwin.vessel import VesselParams, vessel_by_name
 
 __all__ = ["TIMING_FIELDS", "Twin", "comparable", "gnss_error", "run_scenario"]
@@ -220,7 +226,8 @@ class Twin:
         self.lidar = Lidar(LidarConfig(n_rays=s.lidar_rays, max_range_m=s.lidar_range_m,
                                        range_std_m=s.lidar_noise_m))
         self._rng_lidar = rng_lidar
-        self.perception = Perception(self.scene)
+        self.perception = Perception(self.scene, tracker_config(self.params.length,
+                                                                FULL_SCALE_REFERENCE_M))
         self.estimator = DisturbanceEstimator(self.params, dt_s=1.0 / rates.observer_hz,
                                               rng=rng_nav)
         self.controller_name = scenario.own_ship.controller
@@ -537,7 +544,7 @@ class Twin:
             sch.call("observer", t, self._observer_step, t, own)
         # 6. controller and filter
         if sch.due("controller", t):
-            ok, u = sch.call("controller", t, self.controller.act, t, own, self.route, self.scan)
+            ok, u = sch.call("controller", t, self._act, t, own)
             if self._own_monitor:
                 self.route_monitor.update(own[:2], self.route)
             if ok and u is not None and np.isfinite(u).all():
@@ -574,6 +581,15 @@ class Twin:
         self.t_s = self.tick * self.dt_s
         return self._latest if self._latest is not None else \
             self._build_snapshot(t, own, truth, keep_state=True)
+
+    def _act(self, t: float, own: _F8) -> _F8:
+        """u_L from the controller; a controller that gives way (``see_traffic``) is shown
+        what the own ship knows of the traffic first: the confirmed tracks."""
+        see = getattr(self.controller, "see_traffic", None)
+        if see is not None:
+            tr = self.perception.tracks.confirmed()
+            see(tr.ids, tr.mean[:, :2], tr.mean[:, 2:])
+        return self.controller.act(t, own, self.route, self.scan)
 
     def _weather_step(self, t: float) -> None:
         if self.recorder is not None and self.weather is not None and t > 0:
