@@ -128,6 +128,14 @@ class Transponders:
         self._next_static = np.concatenate(
             [self._next_static, t_s + np.floor(self.rng.uniform(0.0, 30.0, k))])
         self._count = np.concatenate([self._count, np.zeros(k, np.int64)])
+        self._update_due()
+
+    def _update_due(self) -> None:
+        """The earliest time any transponder is due (a tick before it has nothing to do:
+        most ticks, at 20 Hz against report intervals of seconds)."""
+        s = self._sends
+        self._due_at = (float(min(self._next[s].min(), self._next_static[s].min()))
+                        if s.any() else math.inf)
 
     def _tagged(self, t_unix: float, sentences: list[str]) -> list[str]:
         tag = tag_block(station=self.station, t_unix_s=t_unix)
@@ -135,7 +143,7 @@ class Transponders:
 
     def step(self, t_s: float, states: NDArray[np.float64]) -> list[str]:
         """The lines broadcast at ``t_s`` by the vessels in ``states`` (n, 6) (truth)."""
-        if not self.alive or not self._sends.any():
+        if not self.alive or t_s + 1e-9 < self._due_at:
             return []
         due = np.flatnonzero(self._sends & (self._next <= t_s + 1e-9))
         due_static = np.flatnonzero(self._sends & (self._next_static <= t_s + 1e-9))
@@ -183,4 +191,5 @@ class Transponders:
                 lines += self._tagged(t_unix, msg)
             self._seq += 1
             self._next_static[i] = t_s + STATIC_INTERVAL_S
+        self._update_due()
         return lines
