@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ScenarioError, StateError
@@ -120,10 +120,16 @@ class ManualController:
 
 
 class LosController:
-    """LOS guidance along the route plus the heading/speed autopilot."""
+    """LOS guidance along the route plus the heading/speed autopilot, giving way by COLREG.
+
+    The runtime shows it the tracked traffic before each call (:meth:`see_traffic`: the
+    tracker's confirmed tracks, never ground truth); :class:`~asvtwin.guidance.GiveWay`
+    turns the LOS course to starboard for a vessel the own ship must keep out of the way
+    of (rules 13-15) and lets LOS bring it back to the route once that vessel is passed.
+    """
 
     def __init__(self, params: VesselParams, spec: OwnShipSpec) -> None:
-        from asvtwin.guidance import HeadingSpeedAutopilot
+        from asvtwin.guidance import GiveWay, HeadingSpeedAutopilot
 
         self.params = params
         self.speed_m_s = spec.cruise_speed_kn * KNOT_M_S
@@ -131,18 +137,30 @@ class LosController:
         self.acceptance_radius_m = spec.acceptance_radius
         self.autopilot = HeadingSpeedAutopilot(params)
         self.monitor = RouteMonitor(self.lookahead_m, self.acceptance_radius_m)
+        self.give_way = GiveWay.for_length(params.length)
+        self._traffic: tuple[NDArray[np.int64], _F8, _F8] | None = None
 
     @property
     def status(self) -> GuidanceStatus:
         """Where the own ship is on its route (the LOS guidance's own bookkeeping)."""
         return self.monitor.status
 
+    def see_traffic(self, ids: ArrayLike, positions: ArrayLike, velocities: ArrayLike) -> None:
+        """The vessels the own ship knows of: ids (n,), positions (n, 2) [m] and velocities
+        over ground (n, 2) [m/s], NED (used from the next :meth:`act`)."""
+        self._traffic = (np.asarray(ids, dtype=np.int64).reshape(-1),
+                         np.asarray(positions, dtype=float).reshape(-1, 2),
+                         np.asarray(velocities, dtype=float).reshape(-1, 2))
+
     def act(self, t_s: float, nav_state: _F8, route: _F8, scan: LidarScan | None) -> _F8:
         st = self.monitor.update(nav_state[:2], route)
         if route.shape[0] == 0:
             return np.asarray(self.autopilot.tau(nav_state, nav_state[2], 0.0), dtype=float)
         speed = 0.0 if st.done else self.speed_m_s
-        return np.asarray(self.autopilot.tau(nav_state, st.course_rad, speed),
+        course = st.course_rad
+        if not st.done and self._traffic is not None:
+            course += self.give_way.offset(nav_state, course, speed, *self._traffic)
+        return np.asarray(self.autopilot.tau(nav_state, course, speed),
                           dtype=float).reshape(3)
 
 

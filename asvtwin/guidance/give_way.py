@@ -1,0 +1,204 @@
+"""Give way by COLREG, then return to the route: a course offset on top of LOS guidance.
+
+A navigator who must keep out of the way (rule 13 overtaking, rule 14 head-on, rule 15
+crossing with the other vessel on the own starboard side; IMO 1972, *COLREGs*) alters
+course to starboard early and substantially (rules 8 and 16), holds the new course until
+the other vessel is past and clear, and then returns to the planned track. A vessel that
+is the stand-on vessel (rule 17: crossing from port, being overtaken) keeps its course and
+speed. :class:`GiveWay` is that manoeuvre as a course offset Δ ≥ 0 (to starboard) added
+to the LOS course χ_LOS:
+
+- a target *enters* the give-way set when :func:`asvtwin.control.colreg.classify_encounters`
+  names it ``head_on``, ``crossing_give_way`` or ``overtaking`` with a risk of collision:
+  with both ships holding their present velocity over ground, closest point of approach
+  (CPA) below ``pass_distance_m`` within ``tcpa_limit_s``;
+- each call, Δ is the smallest alteration in ``step_rad`` steps up to ``max_offset_rad``
+  for which every target of the set is passed at ``pass_distance_m`` or more (CPA and
+  TCPA of the own ship at its speed on course χ_LOS + Δ against the target's velocity:
+  CPA ≥ pass distance, or the range already opening, TCPA ≤ 0). An overtaken vessel may
+  be passed on either side (rule 13): for ``overtaking`` targets port offsets are tried
+  at each magnitude after starboard;
+- a target *leaves* the set when the LOS course alone passes it with a margin
+  (``release_factor`` × pass distance, or opening): then Δ falls to 0 and the LOS law
+  brings the own ship back to its track. Δ shrinks as the other vessel draws aft, so the
+  return starts as soon as the stern of a crossing vessel is clear, not when the range is
+  large;
+- when no offset up to ``max_offset_rad`` clears every target, the one that maximises
+  the smallest CPA is held (the safety filter, when present, has the last word).
+
+The targets are what the own ship knows (tracked positions and velocities), never ground
+truth. CPA/TCPA as an ARPA computes them (constant velocities, IMO MSC.192(79)).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from asvtwin.errors import ParameterError, StateError
+
+__all__ = ["GiveWay", "GiveWayStatus"]
+
+_GIVE_WAY_KINDS = ("head_on", "crossing_give_way", "overtaking")
+
+
+@dataclass(frozen=True)
+class GiveWayStatus:
+    """The give-way layer's decision at one call.
+
+    Attributes
+    ----------
+    offset_rad : float
+        Course alteration Δ added to the LOS course [rad] (> 0: starboard).
+    targets : tuple of int
+        Ids of the targets the own ship is keeping out of the way of.
+    kinds : tuple of str
+        Their encounter kinds when they entered (``head_on``, ``crossing_give_way``,
+        ``overtaking``).
+    min_cpa_m : float
+        Smallest CPA to them on the commanded course [m] (inf without targets).
+    """
+
+    offset_rad: float = 0.0
+    targets: tuple[int, ...] = ()
+    kinds: tuple[str, ...] = ()
+    min_cpa_m: float = math.inf
+
+
+@dataclass
+class GiveWay:
+    """COLREG give-way course offset (see the module docstring).
+
+    Parameters
+    ----------
+    pass_distance_m : float
+        Passing distance the own ship keeps from a vessel it gives way to [m], centre to
+        centre.
+    tcpa_limit_s : float
+        Only approaches within this time are a risk [s].
+    min_speed_m_s : float
+        Slower targets are not underway (left to the safety filter as obstacles) [m/s].
+    max_offset_rad : float
+        Largest alteration [rad].
+    step_rad : float
+        Alterations tried, in steps of this [rad].
+    release_factor : float
+        A target leaves the set when the LOS course passes it at this many pass
+        distances (hysteresis, >= 1).
+    """
+
+    pass_distance_m: float
+    tcpa_limit_s: float
+    min_speed_m_s: float
+    max_offset_rad: float = math.radians(90.0)
+    step_rad: float = math.radians(5.0)
+    release_factor: float = 1.2
+    _active: dict[int, str] = field(default_factory=dict, init=False, repr=False)
+    status: GiveWayStatus = field(default_factory=GiveWayStatus, init=False)
+
+    def __post_init__(self) -> None:
+        for name in ("pass_distance_m", "tcpa_limit_s", "min_speed_m_s", "max_offset_rad",
+                     "step_rad"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise ParameterError(f"GiveWay.{name} must be finite and > 0, actually: {v!r}")
+        if not (math.isfinite(self.release_factor) and self.release_factor >= 1.0):
+            raise ParameterError(f"GiveWay.release_factor must be finite and >= 1, actually: "
+                                 f"{self.release_factor!r}")
+
+    @classmethod
+    def for_length(cls, length_m: float) -> GiveWay:
+        """Settings for a hull of ``length_m`` [m]: pass at 6 ship lengths (527 m for the
+        88 m supply vessel, the clearance the safety filter's track circles reach about
+        three minutes ahead), look 10 minutes ahead at 88 m, Froude-scaled (times × √λ,
+        λ = L / 88 m)."""
+        if not (math.isfinite(length_m) and length_m > 0):
+            raise ParameterError(f"length_m must be finite and > 0, actually: {length_m!r}")
+        sq = math.sqrt(length_m / 88.0)
+        return cls(pass_distance_m=6.0 * length_m, tcpa_limit_s=600.0 * sq,
+                   min_speed_m_s=0.25 * sq)
+
+    def reset(self) -> None:
+        """Forget every target (no manoeuvre in progress)."""
+        self._active.clear()
+        self.status = GiveWayStatus()
+
+    def _cpa(self, p_rel: np.ndarray, v_t: np.ndarray, speed: float, chi: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """CPA, TCPA (m candidate courses × n targets) of the own ship at ``speed`` on each
+        course ``chi`` (m,)."""
+        from asvtwin.control.colreg import cpa_tcpa
+
+        v_o = speed * np.stack([np.cos(chi), np.sin(chi)], axis=1)  # (m, 2)
+        w = v_t[None, :, :] - v_o[:, None, :]  # (m, n, 2)
+        m, n = w.shape[0], w.shape[1]
+        p = np.broadcast_to(p_rel[None], (m, n, 2))
+        cpa, tcpa = cpa_tcpa(p.reshape(-1, 2), w.reshape(-1, 2))
+        return cpa.reshape(m, n), tcpa.reshape(m, n)
+
+    def offset(self, own_state: ArrayLike, los_course_rad: float, speed_m_s: float,
+               ids: ArrayLike, positions: ArrayLike, velocities: ArrayLike) -> float:
+        """The course alteration Δ [rad] (≥ 0 starboard; < 0 only to pass an overtaken
+        vessel on its port side) for the targets ``ids`` (n,) at ``positions`` (n, 2) [m]
+        with ``velocities`` (n, 2) [m/s] over ground, NED; the decision is kept in
+        :attr:`status`."""
+        from asvtwin.control.colreg import EncounterLimits, classify_encounters
+
+        x = np.asarray(own_state, dtype=float).reshape(-1)
+        ids_a = np.asarray(ids, dtype=np.int64).reshape(-1)
+        p = np.asarray(positions, dtype=float).reshape(-1, 2)
+        v = np.asarray(velocities, dtype=float).reshape(-1, 2)
+        if x.shape != (6,) or not np.isfinite(x).all() or not math.isfinite(los_course_rad):
+            raise StateError(f"own_state must be a finite (6,) state and the LOS course finite, "
+                             f"actually: {x!r}, {los_course_rad!r}")
+        if not (p.shape == v.shape and p.shape[0] == ids_a.shape[0]):
+            raise StateError(f"ids (n,), positions and velocities (n, 2) must agree, actually: "
+                             f"{ids_a.shape}, {p.shape}, {v.shape}")
+        ok = np.isfinite(p).all(axis=1) & np.isfinite(v).all(axis=1)
+        ids_a, p, v = ids_a[ok], p[ok], v[ok]
+        speed = max(float(speed_m_s), 1e-6)
+        # 1. who enters: give-way encounters with a risk at the present velocities
+        if len(ids_a):
+            enc = classify_encounters(x, p, v, limits=EncounterLimits(
+                cpa_limit_m=self.pass_distance_m, tcpa_limit_s=self.tcpa_limit_s,
+                min_speed_m_s=self.min_speed_m_s))
+            for i, k in enumerate(enc.kind):
+                if k in _GIVE_WAY_KINDS and int(ids_a[i]) not in self._active:
+                    self._active[int(ids_a[i])] = k
+        # a target no longer tracked is forgotten
+        known = {int(i) for i in ids_a}
+        for tid in [t for t in self._active if t not in known]:
+            del self._active[tid]
+        if not self._active:
+            self.status = GiveWayStatus()
+            return 0.0
+        sel = np.array([int(i) in self._active for i in ids_a])
+        p_rel, v_t, sel_ids = p[sel] - x[:2], v[sel], ids_a[sel]
+        # 2. who leaves: the LOS course alone passes it with a margin
+        cpa0, tcpa0 = self._cpa(p_rel, v_t, speed, np.array([los_course_rad]))
+        clear0 = (cpa0[0] >= self.release_factor * self.pass_distance_m) | (tcpa0[0] <= 0.0)
+        for tid in sel_ids[clear0]:
+            del self._active[int(tid)]
+        keep = ~clear0
+        if not keep.any():
+            self.status = GiveWayStatus()
+            return 0.0
+        p_rel, v_t, sel_ids = p_rel[keep], v_t[keep], sel_ids[keep]
+        # 3. the smallest alteration that passes every remaining target
+        mags = np.arange(0.0, self.max_offset_rad + 1e-9, self.step_rad)
+        port_ok = any(self._active[int(t)] == "overtaking" for t in sel_ids) and \
+            all(self._active[int(t)] == "overtaking" for t in sel_ids)
+        cands = np.concatenate([[m, -m] if (port_ok and m > 0) else [m] for m in mags])
+        cpa, tcpa = self._cpa(p_rel, v_t, speed, los_course_rad + cands)
+        clear = (cpa >= self.pass_distance_m) | (tcpa <= 0.0)
+        worst = np.where(tcpa <= 0.0, np.inf, cpa).min(axis=1)
+        good = np.flatnonzero(clear.all(axis=1))
+        j = int(good[0]) if len(good) else int(np.argmax(worst))
+        off = float(cands[j])
+        self.status = GiveWayStatus(off, tuple(int(t) for t in sel_ids),
+                                    tuple(self._active[int(t)] for t in sel_ids),
+                                    float(worst[j]))
+        return off
