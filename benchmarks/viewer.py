@@ -2,9 +2,10 @@
 
 - ``viewer_fps``: frames presented per second (the display compositor's draw-and-swap,
   read from a Chrome trace: frames that reached the screen, not animation-frame callbacks)
-  by the viewer page in headless Chromium (Debian's, software WebGL through SwiftShader,
-  device pixel ratio 1, 1500 x 950 px) with 200 targets streaming at 10 Hz, while a view
-  is moved every frame as a user's drag would move it: the chart panned
+  by the viewer page in headless Chromium (Debian's, software WebGL: Mesa's llvmpipe when
+  installed, else SwiftShader, see tests/web/chromium.py; ``viewer_webgl_renderer`` names
+  the one used; device pixel ratio 1, 1500 x 950 px) with 200 targets streaming at 10 Hz,
+  while a view is moved every frame as a user's drag would move it: the chart panned
   (``viewer_fps_chart``) and the 3-D camera orbiting the own ship (``viewer_fps_3d``);
   ``viewer_fps`` is the lower of the two. ``viewer_fps_data_only`` is the page left
   alone (it draws on demand: about one frame per snapshot). Each phase also reports the
@@ -12,7 +13,8 @@
   and the browser's CPU time per presented frame (all its processes, from /proc): on a
   loaded machine the wall time is mostly waiting for a core, the CPU time is not, so
   ``2 cores x 1000 / viewer_cpu_ms_per_frame_*`` bounds the frame rate a quiet 2-core
-  machine could reach.
+  machine could reach. When llvmpipe is used, the same is measured with SwiftShader
+  (``viewer_swiftshader``) right after, for comparison.
 - ``ws_clients_held``: the most concurrent WebSocket clients at 10 Hz (of 5, 10, 20, 30,
   40) for which the feed loop's median tick time stayed within 10 % of the no-client
   medians measured just before and after (interleaved) and every client still got >= 90 % of its
@@ -29,7 +31,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -39,6 +40,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from asvtwin.server import ServerThread, SyntheticFeed
+from tests.web.chromium import CHROMIUM, launch
 
 CLIENTS = ROOT / "tests" / "server" / "wsclients.py"
 
@@ -154,12 +156,12 @@ def _presented(trace_path: Path) -> int:
     return sum(1 for e in ev if e.get("name") == "Display::DrawAndSwap" and e.get("ph") in ("X", "B"))
 
 
-def viewer_fps(n_targets: int = 200, seconds: float = 8.0) -> dict[str, object]:
+def viewer_fps(n_targets: int = 200, seconds: float = 8.0, gl: str | None = None) -> dict[str, object]:
     """Frames presented per second with ``n_targets`` targets streaming at 10 Hz, for each
     view driven by a simulated drag (chart: pan; 3-D: orbit) and for the page left alone
-    (data only). Device pixel ratio 1, 1500 x 950 px window."""
-    chromium = shutil.which("chromium")
-    if chromium is None:
+    (data only), with the software WebGL ``gl`` (``llvmpipe``, ``swiftshader``; default:
+    llvmpipe when Mesa has it). Device pixel ratio 1, 1500 x 950 px window."""
+    if CHROMIUM is None:
         return {"viewer_fps": None, "viewer_error": "chromium not installed"}
     import tempfile
 
@@ -169,7 +171,7 @@ def viewer_fps(n_targets: int = 200, seconds: float = 8.0) -> dict[str, object]:
     out: dict[str, object] = {}
     with ServerThread(feed) as srv, sync_playwright() as pw, \
             tempfile.TemporaryDirectory() as tmp:
-        browser = pw.chromium.launch(executable_path=chromium)
+        browser, renderer = launch(pw, gl)
         page = browser.new_page(viewport={"width": 1500, "height": 950}, device_scale_factor=1)
         page.route("**/*", lambda r: r.continue_() if r.request.url.startswith(srv.url)
                    else r.abort())
@@ -197,19 +199,34 @@ def viewer_fps(n_targets: int = 200, seconds: float = 8.0) -> dict[str, object]:
             "viewer_fps_3d": fps_3d, "viewer_fps_data_only": out["data"]["presented_fps"],
             "viewer_cpu_ms_per_frame_chart": out["chart"]["browser_cpu_ms_per_frame"],
             "viewer_cpu_ms_per_frame_3d": out["3d"]["browser_cpu_ms_per_frame"],
-            "viewer_targets": out["chart"]["targets"], "viewer_phases": out}
+            "viewer_targets": out["chart"]["targets"], "viewer_webgl_renderer": renderer,
+            "viewer_phases": out}
 
 
 def main() -> None:
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--viewer-only", action="store_true",
+                    help="only the frame rate (no snapshot sizes, no WebSocket clients)")
+    ap.add_argument("--gl", choices=("llvmpipe", "swiftshader"), default=None,
+                    help="software WebGL for viewer_fps (default: llvmpipe when Mesa has it)")
+    ap.add_argument("--seconds", type=float, default=8.0, help="length of each viewer phase [s]")
+    args = ap.parse_args()
     out: dict[str, object] = {"load_avg_1min_start": os.getloadavg()[0]}
-    sizes = snapshot_sizes()
-    out["snapshot_bytes"] = sizes["synthetic_200_json"]
-    out["snapshot_bytes_detail"] = sizes
-    out.update(clients_held())
-    out.update(viewer_fps())
+    if not args.viewer_only:
+        sizes = snapshot_sizes()
+        out["snapshot_bytes"] = sizes["synthetic_200_json"]
+        out["snapshot_bytes_detail"] = sizes
+        out.update(clients_held())
+    out.update(viewer_fps(seconds=args.seconds, gl=args.gl))
+    if args.gl is None and "llvmpipe" in str(out.get("viewer_webgl_renderer")):
+        # the same with Chromium's own software WebGL, for comparison
+        ref = viewer_fps(seconds=args.seconds, gl="swiftshader")
+        out["viewer_swiftshader"] = {k: v for k, v in ref.items() if k != "viewer_phases"}
     out["load_avg_1min_end"] = os.getloadavg()[0]
     out["note"] = ("shared 2-core machine: numbers move with the load average (software WebGL "
-                   "pays a thread round trip per draw call, so a loaded machine slows it "
+                   "rasterises on the CPU, in several threads, so a loaded machine slows it "
                    "most); viewer_fps = min(chart panned, 3-D orbiting) frames presented/s")
     print(json.dumps(out))
 

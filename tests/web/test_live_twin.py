@@ -12,6 +12,7 @@ import httpx
 import numpy as np
 import pytest
 
+from tests.web.chromium import launch
 from tests.web.test_viewer import CHROMIUM, TIMEOUT_MS, count_colour, local_only, save, viewer
 
 playwright = pytest.importorskip("playwright.sync_api")
@@ -45,7 +46,7 @@ def test_the_viewer_draws_the_paused_live_twin(paused_twin):
     srv, twin = paused_twin
     latest = twin.latest()
     with playwright.sync_playwright() as pw:
-        browser = pw.chromium.launch(executable_path=CHROMIUM)
+        browser, _ = launch(pw)
         page = browser.new_page(viewport={"width": 1500, "height": 950})
         foreign: list[str] = []
         page.route("**/*", lambda r: r.continue_() if local_only(r.request.url)
