@@ -11,7 +11,6 @@ from __future__ import annotations
 import io
 import math
 import os
-import shutil
 import time
 from pathlib import Path
 from urllib.parse import urlsplit
@@ -23,11 +22,11 @@ from asvtwin.server import RecordingFeed, ServerThread, SyntheticFeed
 from asvtwin.twin.recorder import Recorder
 from asvtwin.twin.replay import Recording
 from asvtwin.twin.snapshot import encode
+from tests.web.chromium import CHROMIUM, launch
 
 playwright = pytest.importorskip("playwright.sync_api")
 Image = pytest.importorskip("PIL.Image")
 
-CHROMIUM = shutil.which("chromium")
 pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed "
                                 "(.ci/run installs it with apt)")
 ROOT = Path(__file__).resolve().parents[2]
@@ -73,7 +72,7 @@ def local_only(url: str) -> bool:
 @pytest.fixture(scope="module")
 def browser():
     with playwright.sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=CHROMIUM)
+        b, _ = launch(pw)  # llvmpipe's software WebGL when Mesa has it, else SwiftShader
         yield b
         b.close()
 
@@ -304,4 +303,38 @@ def test_whatif_draws_ghosts_and_the_answer(live):
     assert (np.abs(after - before).max(axis=2) > 40).sum() > 200  # ghosts and panel drawn
     page.click("#btn-whatif-close", **F)
     page.wait_for_function("asvtwinViewer.chart.ghosts == 0", timeout=WAIT_MS)
+    assert not foreign
+
+
+def test_a_long_table_keeps_only_the_rows_in_view(browser):
+    """200 targets: the table's DOM holds the rows in view and some more (virtualised), the
+    scroll height is still the whole list's, and scrolling to the end shows the end of the
+    sorted list."""
+    feed = SyntheticFeed(200, seed=3, tick_hz=10.0)
+    with ServerThread(feed) as srv:
+        time.sleep(0.3)
+        feed.control("pause", {})
+        page, foreign = open_viewer(browser, srv.url)
+        page.click("#targets th[data-k=range]", **F)  # ascending range
+        box = """() => { const s = document.querySelector('.table-scroll'), top = s.getBoundingClientRect();
+            const rows = [...document.querySelectorAll('#targets tbody tr:not(.pad)')];
+            const seen = rows.filter((r) => { const b = r.getBoundingClientRect();
+                return b.top >= top.top + 20 && b.bottom <= top.bottom + 1; });
+            return {dom: rows.length, scroll: s.scrollHeight, view: s.clientHeight,
+                    ranges: seen.map((r) => Number(r.cells[1].textContent)),
+                    height: rows[0].getBoundingClientRect().height}; }"""
+        head = page.evaluate(box)
+        stats = viewer(page)["table"]
+        n = stats["rows"]
+        assert n >= 200 and 10 <= head["dom"] < 80 and stats["domRows"] == head["dom"]
+        assert head["scroll"] >= n * head["height"]  # the spacers stand for the rest
+        assert len(head["ranges"]) >= 5 and head["ranges"] == sorted(head["ranges"])
+        page.evaluate("document.querySelector('.table-scroll').scrollTop = 1e7")
+        page.wait_for_function(f"asvtwinViewer.table.first + asvtwinViewer.table.domRows == {n}",
+                               timeout=WAIT_MS)
+        tail = page.evaluate(box)
+        assert len(tail["ranges"]) >= 5 and tail["ranges"] == sorted(tail["ranges"])
+        assert min(tail["ranges"]) >= max(head["ranges"])
+        assert tail["dom"] < 80
+        page.close()
     assert not foreign

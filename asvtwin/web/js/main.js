@@ -9,6 +9,8 @@ import { renderStatus } from './status.js';
 import { setupWhatIf } from './whatif.js';
 
 const $ = (id) => document.getElementById(id);
+// text written only when it changed: an unchanged write still invalidates style and layout
+const setText = (el, text) => { if (el.textContent !== text) el.textContent = text; };
 const params = new URLSearchParams(location.search);
 const token = params.get('token');
 const rateHz = Math.min(60, Math.max(0.1, Number(params.get('rate_hz') || 10)));
@@ -222,7 +224,7 @@ async function main() {
     if (!latest) return;
     lastSlow = performance.now();
     table.render(targets);
-    $('target-count').textContent = `(${targets.length}, ${table.stats.dangerous} dangerous)`;
+    setText($('target-count'), `(${targets.length}, ${table.stats.dangerous} dangerous)`);
     renderStatus($('status'), latest, V.conn);
   };
   const drawFrame = () => {
@@ -233,8 +235,8 @@ async function main() {
       V.targets = targets.length;
       chart.update(latest, targets);
       view.update(latest, targets);
-      $('clock').textContent = `t = ${latest.t_s.toFixed(1)} s${isPaused() ? ' (paused)' : ''}`;
-      $('btn-pause').textContent = isPaused() ? 'Resume' : 'Pause';
+      setText($('clock'), `t = ${latest.t_s.toFixed(1)} s${isPaused() ? ' (paused)' : ''}`);
+      setText($('btn-pause'), isPaused() ? 'Resume' : 'Pause');
       if (replay && !seeking) { $('seek').value = String(latest.t_s); $('seek-label').textContent = `${latest.t_s.toFixed(1)} / ${info.duration_s.toFixed(1)} s`; }
       if (slowTimer === null) slowTimer = setTimeout(slow, Math.max(0, 500 - (performance.now() - lastSlow)));
     }

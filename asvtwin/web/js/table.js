@@ -4,6 +4,7 @@
 // acknowledged, and alarms again if it leaves the limits and comes back.
 import { NM, KN, deg } from './geo.js';
 
+const OVERSCAN = 20;   // rows drawn above and below the visible ones
 const fmt = (v, d = 1) => (v == null || Number.isNaN(v) ? '–' : v.toFixed(d));
 
 export class TargetTable {
@@ -19,19 +20,21 @@ export class TargetTable {
       this.sortKey = k;
       headRow.querySelectorAll('th').forEach((x) => x.classList.remove('sorted', 'asc'));
       th.classList.add('sorted'); if (this.asc) th.classList.add('asc');
-      this.render(this.last || []);
+      this.render(this.last || [], false);
     }));
     tbody.addEventListener('click', (e) => {
       const key = e.target?.dataset?.ack;
-      if (key) { this.acked.add(key); this.render(this.last || []); onAck && onAck(key); }
+      if (key) { this.acked.add(key); this.render(this.last || [], false); onAck && onAck(key); }
     });
   }
 
-  ackAll() { (this.last || []).forEach((t) => t.danger && this.acked.add(t.key)); this.render(this.last || []); }
+  ackAll() { (this.last || []).forEach((t) => t.danger && this.acked.add(t.key)); this.render(this.last || [], false); }
 
-  // One row per target, kept between renders: only the cells whose text changed are
-  // written and rows are moved only when the order changed, so a render at 2 Hz costs a
-  // little style and layout, not a rebuilt table.
+  // Virtualised rows: the DOM holds only the rows in view plus OVERSCAN above and below
+  // (a spacer row stands for the rest), so a render at 2 Hz lays out and paints a few dozen
+  // rows, not every target (200 rows relaid out and repainted cost tens of milliseconds of
+  // the browser's main thread). Rows in the window are kept between renders: only the cells
+  // whose text changed are written and rows are moved only when the order changed.
   _row(t) {
     let r = this.rows.get(t.key);
     if (!r) {
@@ -45,9 +48,36 @@ export class TargetTable {
     return r;
   }
 
-  render(targets) {
+  _pad() {
+    const tr = document.createElement('tr'), td = document.createElement('td');
+    tr.className = 'pad'; td.colSpan = 10; tr.appendChild(td);
+    return { tr, td, h: -1 };
+  }
+
+  // The rows [first, last) of the sorted list that the scroller shows, with OVERSCAN more
+  // on each side; the row height is measured once from a drawn row.
+  _window(n) {
+    const sc = this.scroller;
+    if (!sc || !this.rowH) return [0, Math.min(n, 2 * OVERSCAN)];
+    const first = Math.max(0, Math.floor(sc.scrollTop / this.rowH) - OVERSCAN);
+    const last = Math.min(n, Math.ceil((sc.scrollTop + sc.clientHeight) / this.rowH) + OVERSCAN);
+    return [Math.min(first, Math.max(0, last - 1)), last];
+  }
+
+  // `tick`: a timed render (dangerous rows flash once per tick), not a scroll or a click
+  render(targets, tick = true) {
     this.last = targets;
     this.rows = this.rows || new Map();
+    if (!this.padTop) { this.padTop = this._pad(); this.padBottom = this._pad(); }
+    if (!this.scroller) {
+      this.scroller = this.tbody.closest('.table-scroll');
+      let asked = false;
+      this.scroller?.addEventListener('scroll', () => {
+        if (asked) return;
+        asked = true;
+        requestAnimationFrame(() => { asked = false; this.render(this.last || [], false); });
+      }, { passive: true });
+    }
     for (const k of [...this.acked]) if (!targets.some((t) => t.key === k && t.danger)) this.acked.delete(k);
     const key = this.sortKey, sign = this.asc ? 1 : -1;
     const val = (t) => (key === 'label' || key === 'source' ? t[key] : t[key] ?? Infinity);
@@ -56,10 +86,11 @@ export class TargetTable {
       return (x < y ? -1 : x > y ? 1 : 0) * sign;
     });
     // unacknowledged dangerous targets flash: their rows toggle on every render (2 Hz)
-    this.blink = !this.blink;
+    if (tick) this.blink = !this.blink;
+    const [first, last] = this._window(rows.length);
     const seen = new Set();
     let writes = 0;
-    const order = rows.map((t) => {
+    const order = rows.slice(first, last).map((t) => {
       const r = this._row(t);
       seen.add(t.key);
       const texts = [t.label, fmt(t.range / NM, 2), fmt(t.bearing, 0), fmt(t.sog / KN, 1),
@@ -78,12 +109,25 @@ export class TargetTable {
       return r.tr;
     });
     for (const [k, r] of this.rows) if (!seen.has(k)) { r.tr.remove(); this.rows.delete(k); }
+    // the spacers keep the scroll height of the whole list
+    const rowH = this.rowH || 0;
+    for (const [pad, h] of [[this.padTop, first * rowH], [this.padBottom, (rows.length - last) * rowH]]) {
+      if (pad.h !== h) { pad.td.style.height = `${h}px`; pad.tr.hidden = h === 0; pad.h = h; }
+    }
+    order.unshift(this.padTop.tr); order.push(this.padBottom.tr);
     const kids = this.tbody.children;
     let same = kids.length === order.length;
     for (let i = 0; same && i < order.length; i++) same = kids[i] === order[i];
     if (!same) this.tbody.replaceChildren(...order);
+    if (!this.rowH && order.length > 2) {
+      // measured once (a forced layout); rows have a fixed height (CSS)
+      this.rowH = order[1].getBoundingClientRect().height || 0;
+      if (this.rowH && last < rows.length) { this.render(targets, false); return; }
+    }
     this.stats.cellWrites = writes;
     this.stats.reordered = !same;
+    this.stats.domRows = last - first;
+    this.stats.first = first;
     const dangerous = targets.filter((t) => t.danger);
     Object.assign(this.stats, {
       rows: rows.length, dangerous: dangerous.length,
