@@ -134,12 +134,18 @@ def warm_up(psf_backend: str = "auto") -> None:
     initializer: the first call of a fresh process otherwise pays ~1–4 s)."""
     from asvtwin.control import MovingObstacles, PsfConfig, SafetyFilter
     from asvtwin.vessel import cybership2, cybership2_full_scale
+    from asvtwin.whatif.rollout import filter_config
 
+    # the twin's filter, and the rollouts' (its circle slots sized to a fork of 1 target)
+    configs = {PsfConfig(backend=psf_backend),
+               filter_config(RolloutConfig(psf_backend=psf_backend), 1)}
     for p in (cybership2(), cybership2_full_scale()):
-        f = SafetyFilter(p, config=PsfConfig(backend=psf_backend))
-        obs = MovingObstacles.constant_velocity([[20 * p.length, 0.0]], [[-0.1, 0.0]],
-                                                [p.length], N=f.config.N, dt_s=f.config.dt_s)
-        f.filter([0, 0, 0, 0.1, 0, 0], [0.0, 0.0, 0.0], obs, t_s=0.0)
+        for cfg in configs:
+            f = SafetyFilter(p, config=cfg)
+            obs = MovingObstacles.constant_velocity([[20 * p.length, 0.0]], [[-0.1, 0.0]],
+                                                    [p.length], N=f.config.N,
+                                                    dt_s=f.config.dt_s)
+            f.filter([0, 0, 0, 0.1, 0, 0], [0.0, 0.0, 0.0], obs, t_s=0.0)
 
 
 def ask(fork: Fork, alternatives: Sequence[Alternative] | None = None, *, rollouts: int = 100,

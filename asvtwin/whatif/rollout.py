@@ -74,7 +74,8 @@ from asvtwin.whatif.alternatives import Alternative
 from asvtwin.whatif.certify import ULCertifier
 from asvtwin.whatif.fork import Fork
 
-__all__ = ["RolloutConfig", "RolloutResult", "Samples", "draw_samples", "simulate"]
+__all__ = ["RolloutConfig", "RolloutResult", "Samples", "draw_samples", "filter_config",
+           "simulate"]
 
 _CS2_L = 1.255  # model-scale CyberShip II length [m] (the Froude reference)
 
@@ -123,6 +124,15 @@ class RolloutConfig:
     fallback_hold_stages : int
         Economy: stages of a fallback plan followed before the next filter call (0: the
         filter is asked again at its period, as at the full rate).
+    warm_from_siblings : bool
+        Economy: a future's filter, new at its first call, starts its solver from the
+        last plan the filter solved for a sibling future (same alternative and group)
+        instead of a cold guess (two QPs instead of ``cold_start_solves``).
+    hold_certified_fallbacks : bool
+        Economy: a fallback plan that the strict rule of
+        :class:`~asvtwin.whatif.certify.ULCertifier` certifies for this future is held
+        for ``plan_hold_stages`` like a certified solver plan (else
+        ``fallback_hold_stages``).
     """
 
     horizon_s: float = 120.0
@@ -142,6 +152,10 @@ class RolloutConfig:
     share_plans: int = 3
     cold_start_solves: int = 0
     share_group: int = 10
+    warm_from_siblings: bool = True
+    hold_certified_fallbacks: bool = True
+    recheck_holds: bool = False
+    circle_slots: bool = True
 
     def __post_init__(self) -> None:
         for name in ("horizon_s", "turn_max_deg", "record_every_s"):
@@ -261,9 +275,26 @@ class RolloutResult:
             "land_clearance_m", "filter_calls", "interventions", "fallbacks", "track")}
         info = dict(parts[0].info)
         for k in ("filter_calls", "filters_built", "u_L_precertified",
-                  "filter_kept_u_L", "plans_shared", "cpu_s"):
+                  "filter_kept_u_L", "plans_shared", "warm_from_siblings",
+                  "fallbacks_certified", "holds_rechecked", "cpu_s"):
             info[k] = float(sum(p.info.get(k, 0.0) for p in parts))
         return RolloutResult(**cat, track_t_s=parts[0].track_t_s, info=info)
+
+
+def filter_config(config: RolloutConfig, n_targets: int) -> PsfConfig:
+    """The safety filter's settings in the rollouts of a fork with ``n_targets`` tracks.
+
+    The filter's solver has a fixed number of circle slots (``PsfConfig.n_circles``, 20);
+    the slots no obstacle fills hold far-away dummies, which never bind but which the QP
+    solver carries through every iteration. With ``circle_slots`` (economy) the slots
+    are sized to the fork: the smallest of 4, 8, 20 that holds every target, so the
+    solver sees the same obstacles with fewer idle constraints (one solver build per
+    size, cached on disk)."""
+    nc = PsfConfig.n_circles
+    if config.economy and config.circle_slots:
+        nc = next((k for k in (4, 8) if n_targets <= k), nc)
+    return PsfConfig(backend=config.psf_backend, cold_start_solves=config.cold_start_solves or 5,
+                     n_circles=nc)
 
 
 def _course_over_ground(x: _F8) -> float:
@@ -295,6 +326,7 @@ class _Targets:
             self.t_change[:, j0] = 0.0
         self.tau_s = tau_s
         self.rate = rate_rad_s
+        self._update_velocity()
 
     def step(self, t: float, dt: float) -> None:
         active = t >= self.t_change
@@ -304,10 +336,12 @@ class _Targets:
                                0.0)
         self.p[..., 0] += dt * self.speed * np.cos(self.course)
         self.p[..., 1] += dt * self.speed * np.sin(self.course)
+        self._update_velocity()
 
-    @property
-    def velocity(self) -> _F8:
-        return np.stack([self.speed * np.cos(self.course), self.speed * np.sin(self.course)], -1)
+    def _update_velocity(self) -> None:
+        #: (R, m, 2) velocities [m/s] after the last step (read per future by the filter)
+        self.velocity = np.stack([self.speed * np.cos(self.course),
+                                  self.speed * np.sin(self.course)], -1)
 
 
 def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternative],
@@ -390,9 +424,12 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
     shared: dict[tuple[int, int], list[tuple[float, _F8]]] = {}
     G = cfg.share_group
     n_shared = 0
+    # per group: the last plan any filter of it solved, (t, x_pred, u_pred): a warm start
+    group_last: dict[tuple[int, int], tuple[float, _F8, _F8]] = {}
+    n_warm = 0  # new filters warm-started from a sibling's plan
+    n_fb_cert = 0  # fallback plans certified by the strict rule (held like solver plans)
     if any(a.filter for a in alternatives):
-        psf_cfg = PsfConfig(backend=cfg.psf_backend,
-                            cold_start_solves=cfg.cold_start_solves or 5)
+        psf_cfg = filter_config(cfg, m)
         proto = SafetyFilter(p, config=psf_cfg)
         N, pdt = proto.config.N, proto.config.dt_s
         reach_t = N * pdt
@@ -406,6 +443,36 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
     rec_t = [0.0]
     rec = [sim.state[:, :2].reshape(A, R, 2).copy()]
     n_filtered = 0
+    hold_until = np.full(A * R, -np.inf)  # economy: a certified plan is held until then
+    n_held = 0
+
+    def _hold(j: int) -> None:
+        """Economy: future ``j`` follows its certified plan, re-checked at every filter
+        period (``recheck_holds``), or blindly for ``plan_hold_stages``."""
+        hold_until[j] = t + cfg.plan_hold_stages * pdt
+        next_call[j] = t + (fper if cfg.recheck_holds else max(cfg.plan_hold_stages * pdt,
+                                                                  fper))
+
+    def _still_certified(j: int) -> bool:
+        """Follow the held certified plan of future ``j`` on while its remainder stays
+        certified for this future's targets now (re-checked at every filter period)."""
+        nonlocal n_held
+        plan = plans.get(j)
+        if plan is None or t + 1e-9 >= hold_until[j]:
+            return False
+        i, r = divmod(j, R)
+        s_i = min(int((t - plan[0]) / pdt + 1e-9), N - 1)
+        Us = np.zeros((N, 3))
+        Us[: N - s_i] = plan[1][s_i:]
+        if cert.first_certified(x[j], samples.d[r], targets[i].p[r],  # type: ignore[union-attr]
+                                targets[i].velocity[r], due_segs[j], [Us]) != 0:
+            return False
+        due_segs.pop(j)
+        u_apply[j] = Us[0]
+        next_call[j] = t + fper
+        n_held += 1
+        return True
+
     x = sim.state
     for k in range(steps):
         t = k * dt
@@ -487,6 +554,8 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
                     u_apply[j] = u0[j]
                 n_precert += int(ok.sum())
                 due_j = [int(j) for j in jj[~ok]]
+                if cfg.recheck_holds:
+                    due_j = [j for j in due_j if not _still_certified(j)]
             for j in due_j:
                 i, r = divmod(j, R)
                 tg = targets[i]
@@ -513,12 +582,19 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
                         lim = 0.01 * (proto.u_ub - proto.u_lb)
                         uLc = np.clip(u_L[j], proto.u_lb, proto.u_ub)
                         inter[j] += int(np.any((lim > 0) & (np.abs(uLc - Us[0]) > lim)))
-                        next_call[j] = t + max(cfg.plan_hold_stages * pdt, fper)
+                        _hold(j)
                         n_shared += 1
                         continue
                 f = filt.get(j)
                 if f is None:
                     f = filt[j] = SafetyFilter(p, config=psf_cfg)
+                    sib = group_last.get(grp) if cfg.economy and cfg.warm_from_siblings else None
+                    if sib is not None and round((t - sib[0]) / pdt) < N - 1:
+                        # a new filter's first solve starts from a sibling's last solved
+                        # plan (the same alternative, a nearby state) instead of a cold
+                        # guess: the filter's warm start (2 QPs, not cold_start_solves)
+                        f._last = (fork.t_s + sib[0], sib[1], sib[2])
+                        n_warm += 1
                 obs: list[MovingObstacles | CoastSegments] = []
                 if m:
                     obs.append(MovingObstacles.constant_velocity(
@@ -542,7 +618,19 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
                 u_apply[j] = res.u0
                 inter[j] += int(res.intervened)
                 falls[j] += int(res.fallback != "none")
-                if res.success:
+                if not res.passed_through:
+                    group_last[grp] = (t, np.asarray(res.x_pred, float),
+                                       np.asarray(res.u_pred, float))
+                held_ok = res.success
+                if (not held_ok and cfg.economy and cfg.hold_certified_fallbacks
+                        and cert is not None and not res.passed_through):
+                    # a fallback candidate that the strict rule certifies for this
+                    # future's targets is as safe to follow as a certified solver plan
+                    held_ok = cert.first_certified(
+                        x[j], samples.d[r], tg.p[r], tg.velocity[r], segs,
+                        [np.asarray(res.u_pred, float)]) == 0
+                    n_fb_cert += int(held_ok)
+                if held_ok:
                     certified_plan[j] = (t, np.asarray(res.u_pred, dtype=float))
                     if not res.passed_through:
                         shared.setdefault(grp, []).append((t, np.asarray(res.u_pred, float)))
@@ -551,9 +639,9 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
                 if not cfg.economy or res.passed_through:
                     plans.pop(j, None)
                     next_call[j] = t + fper
-                elif res.success and res.fallback == "none":
+                elif held_ok:
                     plans[j] = (t, np.asarray(res.u_pred, dtype=float))
-                    next_call[j] = t + max(cfg.plan_hold_stages * pdt, fper)
+                    _hold(j)
                 else:
                     plans[j] = (t, np.asarray(res.u_pred, dtype=float))
                     next_call[j] = t + max(cfg.fallback_hold_stages * pdt, fper)
@@ -589,5 +677,7 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
         fallbacks=falls.reshape(sh), track=np.stack(rec, axis=2), track_t_s=np.array(rec_t),
         info={"filter_calls": float(n_filtered), "filters_built": float(len(filt)),
               "u_L_precertified": float(n_precert), "filter_kept_u_L": float(n_passed),
-              "plans_shared": float(n_shared), "cpu_s": time.process_time() - cpu0,
+              "plans_shared": float(n_shared), "warm_from_siblings": float(n_warm),
+              "fallbacks_certified": float(n_fb_cert), "holds_rechecked": float(n_held),
+              "cpu_s": time.process_time() - cpu0,
               "steps": float(steps), "dt_s": dt, "filter_period_s": fper})
