@@ -105,6 +105,161 @@ def _axis(near, far, sign, g_near, g_far_lo, g_far_hi, kappa, near_kappa):  # ty
 
 
 @njit(cache=True)
+def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, prm, z, R, ext, R1, row):  # type: ignore[no-untyped-def]
+    """The hull-centre model of the ``n`` returns ``points[s:s + n]`` (hull axis
+    ``heading_i``, NaN: unknown; occluder shadows ``shadow[si]``), written to row ``row``
+    of ``z``, ``R``, ``ext``, ``R1`` (see :func:`hull_box_kernel`)."""
+    rs, bs, step, rho_lo, rho_hi, ktip, ostd, floor = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7]
+    kgap, taper, a_lo, a_hi, kappa, max_hidden = prm[8], prm[9], prm[10], prm[11], prm[12], prm[13]
+    # line of sight to the centroid, range, ray spacing
+    c0 = c1 = 0.0
+    for j in range(n):
+        c0 += points[s + j, 0]
+        c1 += points[s + j, 1]
+    c0 /= n
+    c1 /= n
+    r = np.hypot(c0 - o0, c1 - o1)
+    if r > 1e-9:
+        l0, l1 = (c0 - o0) / r, (c1 - o1) / r
+    else:
+        l0, l1 = 1.0, 0.0
+    if step > 0.0 or n < 2:
+        dphi = step if step > 0.0 else 0.01
+    else:  # mean angular spacing of the returns (dropouts make it conservative)
+        amin, amax = np.inf, -np.inf
+        for j in range(n):
+            a = np.arctan2(-(points[s + j, 0] - o0) * l1 + (points[s + j, 1] - o1) * l0,
+                           (points[s + j, 0] - o0) * l0 + (points[s + j, 1] - o1) * l1)
+            amin, amax = min(amin, a), max(amax, a)
+        dphi = max((amax - amin) / (n - 1), 1e-5)
+    d = r * dphi
+    known = np.isfinite(heading_i)
+    th = heading_i if known else _box_orientation(points, s, n)
+    ch, sh = np.cos(th), np.sin(th)
+    # visible extents in the hull frame (h = (ch, sh), n = (-sh, ch))
+    s0 = s1 = t0 = t1 = 0.0
+    for j in range(n):
+        a = points[s + j, 0] * ch + points[s + j, 1] * sh
+        b = -points[s + j, 0] * sh + points[s + j, 1] * ch
+        if j == 0:
+            s0 = s1 = a
+            t0 = t1 = b
+        else:
+            s0, s1, t0, t1 = min(s0, a), max(s1, a), min(t0, b), max(t1, b)
+    es, et = s1 - s0, t1 - t0
+    if not known and es < et:  # unknown heading: call the longer visible side the axis
+        th += 0.5 * np.pi
+        ch, sh = np.cos(th), np.sin(th)
+        s0, s1, t0, t1 = t0, t1, -s1, -s0
+        es, et = et, es
+    so = o0 * ch + o1 * sh
+    to = -o0 * sh + o1 * ch
+    big = 1e6
+    sign_h = 1.0 if so < 0.5 * (s0 + s1) else -1.0
+    near_h, far_h = (s0, s1) if sign_h > 0 else (s1, s0)
+    sign_n = 1.0 if to < 0.5 * (t0 + t1) else -1.0
+    near_n, far_n = (t0, t1) if sign_n > 0 else (t1, t0)
+    # a face along h (the flank at t = near_n) is hit at grazing angle sin β ≈ |t_o - near_n| / r,
+    # so its returns are d / sin β apart along h; a face along n (stern, bow) likewise
+    # (made conservative by two heading standard deviations: a grazing face may be
+    # more grazing than the assumed heading says)
+    ps = heading_std_i if known else ostd
+    gh = abs(to - near_n) / r - 2.0 * ps
+    gn = abs(so - near_h) / r - 2.0 * ps
+    # (no flank faces the sensor when it looks along the hull from within its beam,
+    # no end face when it looks across from within its length)
+    dh = kgap * d / gh if (gh > 1e-9 and not t0 < to < t1) else big
+    dn = kgap * d / gn if (gn > 1e-9 and not s0 < so < s1) else big
+    es_hi = es + min(dh, big)  # what the sampling allows the extents to be
+    et_hi = et + min(dn, big)
+    if known:
+        L_lo, L_hi = rho_lo * et, rho_hi * et_hi  # a hull seen end-on: L from the beam
+        B_lo, B_hi = es / rho_hi, es_hi / rho_lo  # seen broadside: B from the length
+    else:  # either side may be the hull axis: the unseen depth up to ρ_min times the
+        # longer visible side (a flank seen broadside; a stern seen end-on is deeper, and
+        # is measured again once the track has a course)
+        L_lo, L_hi = 0.0, rho_lo * max(es, et)
+        B_lo, B_hi = 0.0, rho_lo * max(es, et)
+    # a tapering bow hides part of itself. Off-axis angle of the sensor seen from the
+    # hull, 0 end-on: below a_lo the bow's V faces are both seen from ahead and hidden
+    # from aft; above a_hi the near V face is seen from aft and the far flank hidden
+    # from ahead (the V shows half the beam); in between either (ρ-dependent)
+    off = np.arctan2(abs(to - 0.5 * (t0 + t1)), abs(so - 0.5 * (s0 + s1)))
+    w_all = 1.0 if off < a_lo else 0.0
+    w_any = 1.0 if off < a_hi else 0.0
+    L_est = max(es, L_lo) / (1.0 - taper)
+    tap_lo, tap_hi, half_lo, half_hi = 0.0, 0.0, 0.0, 0.0
+    if not known:
+        tap_hi, half_hi = taper * L_est, et
+    elif sign_h > 0.0:  # sensor aft, bow away: the bow's tip beyond the shoulders
+        tap_lo, tap_hi = w_all * taper * L_est, w_any * taper * L_est
+    else:  # sensor ahead: the far half of the beam behind the near V face and flank
+        half_lo, half_hi = (1.0 - w_any) * et, (1.0 - w_all) * et
+    # an end hidden behind an occluder: the hull may go on behind it. The occluder's
+    # shadow is E wide across the line of sight at the end's range; the end's
+    # direction across the line of sight is w = ∓(−l1, l0) (lower / higher bearing).
+    # Going ΔS along a hull axis a sweeps ΔS |w·a| of bearing, so up to
+    # ΔS = E / |w·a| (at most max_hidden) of the hull may hide on the side sign(w·a)
+    # of each axis: that extreme gets an unseen part U[0, ΔS] that repeats from scan
+    # to scan. End-on, the whole length may hide behind a narrow occluder.
+    # (sign_h > 0: the sensor is on the s0 side, so s1 is the far extreme)
+    occ_h0 = occ_h1 = occ_t0 = occ_t1 = 0.0  # extensions beyond s0, s1, t0, t1
+    for side in range(2):
+        E = shadow[si, side]
+        if not E > 0.0:
+            continue
+        w0, w1 = (l1, -l0) if side == 0 else (-l1, l0)
+        wh = w0 * ch + w1 * sh
+        wn = -w0 * sh + w1 * ch
+        ext_h = min(E / max(abs(wh), 1e-9), max_hidden)
+        ext_t = min(E / max(abs(wn), 1e-9), max_hidden)
+        # the near extreme of an axis within ~20° of the line of sight cannot hide:
+        # its face is what the visible bearings show (a stern seen end-on behind a
+        # boat can, being across the line of sight by more than that)
+        if wh > 0.0 and (sign_h > 0.0 or abs(wh) >= _NEAR_HIDE):
+            occ_h1 = max(occ_h1, ext_h)
+        elif wh <= 0.0 and (sign_h < 0.0 or abs(wh) >= _NEAR_HIDE):
+            occ_h0 = max(occ_h0, ext_h)
+        if wn > 0.0 and (sign_n > 0.0 or abs(wn) >= _NEAR_HIDE):
+            occ_t1 = max(occ_t1, ext_t)
+        elif wn <= 0.0 and (sign_n < 0.0 or abs(wn) >= _NEAR_HIDE):
+            occ_t0 = max(occ_t0, ext_t)
+    if known:  # the beam is at most 1/ρ_min of the longest the hull can be
+        cap_t = max((es + occ_h0 + occ_h1 + min(dh, big)) / rho_lo - et, 0.0)
+        occ_t0, occ_t1 = min(occ_t0, cap_t), min(occ_t1, cap_t)
+    # along h
+    far_occ, near_occ = (occ_h1, occ_h0) if sign_h > 0 else (occ_h0, occ_h1)
+    hi = min(dh, max(L_hi - es, 0.0))
+    lo = min(max(L_lo - es, 0.0), hi)
+    g_near = min(dh, ktip * d)
+    zs, vs, vs1 = _axis(near_h, far_h, sign_h, max(g_near, near_occ), lo + tap_lo,
+                        max(hi + tap_hi, far_occ), kappa, kappa if near_occ > g_near else 1.0)
+    L_max = es + max(hi + tap_hi, far_occ) + near_occ
+    # along n
+    far_occ, near_occ = (occ_t1, occ_t0) if sign_n > 0 else (occ_t0, occ_t1)
+    hi = min(dn, max(B_hi - et, 0.0))
+    lo = min(max(B_lo - et, 0.0), hi)
+    g_near = min(dn, ktip * d)
+    zt, vt, vt1 = _axis(near_n, far_n, sign_n, max(g_near, near_occ), lo + half_lo,
+                        max(hi + half_hi, far_occ), kappa, kappa if near_occ > g_near else 1.0)
+    B_max = et + max(hi + half_hi, far_occ) + near_occ
+    z[row, 0] = zs * ch - zt * sh
+    z[row, 1] = zs * sh + zt * ch
+    ext[row, 0], ext[row, 1] = es, et
+    # R = H diag(vs, vt) Hᵀ + range noise along the line of sight + bearing noise across it
+    #     + heading uncertainty (the box turns about the visible corner) + a floor
+    vpsi = ps * ps * 0.25 * (L_max * L_max + B_max * B_max)
+    iso = floor * floor + vpsi
+    vr, vb = rs * rs, (r * bs) ** 2
+    R[row, 0, 0] = ch * ch * vs + sh * sh * vt + l0 * l0 * vr + l1 * l1 * vb + iso
+    R[row, 1, 1] = sh * sh * vs + ch * ch * vt + l1 * l1 * vr + l0 * l0 * vb + iso
+    R[row, 0, 1] = R[row, 1, 0] = ch * sh * (vs - vt) + l0 * l1 * (vr - vb)
+    R1[row, 0, 0] = ch * ch * vs1 + sh * sh * vt1 + l0 * l0 * vr + l1 * l1 * vb + iso
+    R1[row, 1, 1] = sh * sh * vs1 + ch * ch * vt1 + l1 * l1 * vr + l0 * l0 * vb + iso
+    R1[row, 0, 1] = R1[row, 1, 0] = ch * sh * (vs1 - vt1) + l0 * l1 * (vr - vb)
+
+
+@njit(cache=True)
 def hull_box_kernel(points, offsets, origin, heading, heading_std, shadow, prm, only_known=False):  # type: ignore[no-untyped-def]
     """Centres ``z (k, 2)``, covariances ``R (k, 2, 2)`` (the unseen-depth part scaled by
     ``kappa``: for a filter), box extents ``ext (k, 2)`` ``[along, across]`` and the
@@ -120,162 +275,33 @@ def hull_box_kernel(points, offsets, origin, heading, heading_std, shadow, prm, 
     taper_angle_lo, taper_angle_hi, kappa (persistence of the unseen-depth error, scans),
     max_hidden (most of a hull taken to hide behind an occluder, m)].
     """
-    rs, bs, step, rho_lo, rho_hi, ktip, ostd, floor = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7]
-    kgap, taper, a_lo, a_hi, kappa, max_hidden = prm[8], prm[9], prm[10], prm[11], prm[12], prm[13]
     k = offsets.shape[0] - 1
     z = np.full((k, 2), np.nan)
     R = np.full((k, 2, 2), np.nan)
     R1 = np.full((k, 2, 2), np.nan)
     ext = np.full((k, 2), np.nan)
-    o0, o1 = origin[0], origin[1]
     for i in range(k):
         s, n = offsets[i], offsets[i + 1] - offsets[i]
         if n == 0 or (only_known and not np.isfinite(heading[i])):
             continue
-        # line of sight to the centroid, range, ray spacing
-        c0 = c1 = 0.0
-        for j in range(n):
-            c0 += points[s + j, 0]
-            c1 += points[s + j, 1]
-        c0 /= n
-        c1 /= n
-        r = np.hypot(c0 - o0, c1 - o1)
-        if r > 1e-9:
-            l0, l1 = (c0 - o0) / r, (c1 - o1) / r
-        else:
-            l0, l1 = 1.0, 0.0
-        if step > 0.0 or n < 2:
-            dphi = step if step > 0.0 else 0.01
-        else:  # mean angular spacing of the returns (dropouts make it conservative)
-            amin, amax = np.inf, -np.inf
-            for j in range(n):
-                a = np.arctan2(-(points[s + j, 0] - o0) * l1 + (points[s + j, 1] - o1) * l0,
-                               (points[s + j, 0] - o0) * l0 + (points[s + j, 1] - o1) * l1)
-                amin, amax = min(amin, a), max(amax, a)
-            dphi = max((amax - amin) / (n - 1), 1e-5)
-        d = r * dphi
-        known = np.isfinite(heading[i])
-        th = heading[i] if known else _box_orientation(points, s, n)
-        ch, sh = np.cos(th), np.sin(th)
-        # visible extents in the hull frame (h = (ch, sh), n = (-sh, ch))
-        s0 = s1 = t0 = t1 = 0.0
-        for j in range(n):
-            a = points[s + j, 0] * ch + points[s + j, 1] * sh
-            b = -points[s + j, 0] * sh + points[s + j, 1] * ch
-            if j == 0:
-                s0 = s1 = a
-                t0 = t1 = b
-            else:
-                s0, s1, t0, t1 = min(s0, a), max(s1, a), min(t0, b), max(t1, b)
-        es, et = s1 - s0, t1 - t0
-        if not known and es < et:  # unknown heading: call the longer visible side the axis
-            th += 0.5 * np.pi
-            ch, sh = np.cos(th), np.sin(th)
-            s0, s1, t0, t1 = t0, t1, -s1, -s0
-            es, et = et, es
-        so = o0 * ch + o1 * sh
-        to = -o0 * sh + o1 * ch
-        big = 1e6
-        sign_h = 1.0 if so < 0.5 * (s0 + s1) else -1.0
-        near_h, far_h = (s0, s1) if sign_h > 0 else (s1, s0)
-        sign_n = 1.0 if to < 0.5 * (t0 + t1) else -1.0
-        near_n, far_n = (t0, t1) if sign_n > 0 else (t1, t0)
-        # a face along h (the flank at t = near_n) is hit at grazing angle sin β ≈ |t_o - near_n| / r,
-        # so its returns are d / sin β apart along h; a face along n (stern, bow) likewise
-        # (made conservative by two heading standard deviations: a grazing face may be
-        # more grazing than the assumed heading says)
-        ps = heading_std[i] if known else ostd
-        gh = abs(to - near_n) / r - 2.0 * ps
-        gn = abs(so - near_h) / r - 2.0 * ps
-        # (no flank faces the sensor when it looks along the hull from within its beam,
-        # no end face when it looks across from within its length)
-        dh = kgap * d / gh if (gh > 1e-9 and not t0 < to < t1) else big
-        dn = kgap * d / gn if (gn > 1e-9 and not s0 < so < s1) else big
-        es_hi = es + min(dh, big)  # what the sampling allows the extents to be
-        et_hi = et + min(dn, big)
-        if known:
-            L_lo, L_hi = rho_lo * et, rho_hi * et_hi  # a hull seen end-on: L from the beam
-            B_lo, B_hi = es / rho_hi, es_hi / rho_lo  # seen broadside: B from the length
-        else:  # either side may be the hull axis: the unseen depth up to ρ_min times the
-            # longer visible side (a flank seen broadside; a stern seen end-on is deeper, and
-            # is measured again once the track has a course)
-            L_lo, L_hi = 0.0, rho_lo * max(es, et)
-            B_lo, B_hi = 0.0, rho_lo * max(es, et)
-        # a tapering bow hides part of itself. Off-axis angle of the sensor seen from the
-        # hull, 0 end-on: below a_lo the bow's V faces are both seen from ahead and hidden
-        # from aft; above a_hi the near V face is seen from aft and the far flank hidden
-        # from ahead (the V shows half the beam); in between either (ρ-dependent)
-        off = np.arctan2(abs(to - 0.5 * (t0 + t1)), abs(so - 0.5 * (s0 + s1)))
-        w_all = 1.0 if off < a_lo else 0.0
-        w_any = 1.0 if off < a_hi else 0.0
-        L_est = max(es, L_lo) / (1.0 - taper)
-        tap_lo, tap_hi, half_lo, half_hi = 0.0, 0.0, 0.0, 0.0
-        if not known:
-            tap_hi, half_hi = taper * L_est, et
-        elif sign_h > 0.0:  # sensor aft, bow away: the bow's tip beyond the shoulders
-            tap_lo, tap_hi = w_all * taper * L_est, w_any * taper * L_est
-        else:  # sensor ahead: the far half of the beam behind the near V face and flank
-            half_lo, half_hi = (1.0 - w_any) * et, (1.0 - w_all) * et
-        # an end hidden behind an occluder: the hull may go on behind it. The occluder's
-        # shadow is E wide across the line of sight at the end's range; the end's
-        # direction across the line of sight is w = ∓(−l1, l0) (lower / higher bearing).
-        # Going ΔS along a hull axis a sweeps ΔS |w·a| of bearing, so up to
-        # ΔS = E / |w·a| (at most max_hidden) of the hull may hide on the side sign(w·a)
-        # of each axis: that extreme gets an unseen part U[0, ΔS] that repeats from scan
-        # to scan. End-on, the whole length may hide behind a narrow occluder.
-        # (sign_h > 0: the sensor is on the s0 side, so s1 is the far extreme)
-        occ_h0 = occ_h1 = occ_t0 = occ_t1 = 0.0  # extensions beyond s0, s1, t0, t1
-        for side in range(2):
-            E = shadow[i, side]
-            if not E > 0.0:
-                continue
-            w0, w1 = (l1, -l0) if side == 0 else (-l1, l0)
-            wh = w0 * ch + w1 * sh
-            wn = -w0 * sh + w1 * ch
-            ext_h = min(E / max(abs(wh), 1e-9), max_hidden)
-            ext_t = min(E / max(abs(wn), 1e-9), max_hidden)
-            # the near extreme of an axis within ~20° of the line of sight cannot hide:
-            # its face is what the visible bearings show (a stern seen end-on behind a
-            # boat can, being across the line of sight by more than that)
-            if wh > 0.0 and (sign_h > 0.0 or abs(wh) >= _NEAR_HIDE):
-                occ_h1 = max(occ_h1, ext_h)
-            elif wh <= 0.0 and (sign_h < 0.0 or abs(wh) >= _NEAR_HIDE):
-                occ_h0 = max(occ_h0, ext_h)
-            if wn > 0.0 and (sign_n > 0.0 or abs(wn) >= _NEAR_HIDE):
-                occ_t1 = max(occ_t1, ext_t)
-            elif wn <= 0.0 and (sign_n < 0.0 or abs(wn) >= _NEAR_HIDE):
-                occ_t0 = max(occ_t0, ext_t)
-        if known:  # the beam is at most 1/ρ_min of the longest the hull can be
-            cap_t = max((es + occ_h0 + occ_h1 + min(dh, big)) / rho_lo - et, 0.0)
-            occ_t0, occ_t1 = min(occ_t0, cap_t), min(occ_t1, cap_t)
-        # along h
-        far_occ, near_occ = (occ_h1, occ_h0) if sign_h > 0 else (occ_h0, occ_h1)
-        hi = min(dh, max(L_hi - es, 0.0))
-        lo = min(max(L_lo - es, 0.0), hi)
-        g_near = min(dh, ktip * d)
-        zs, vs, vs1 = _axis(near_h, far_h, sign_h, max(g_near, near_occ), lo + tap_lo,
-                            max(hi + tap_hi, far_occ), kappa, kappa if near_occ > g_near else 1.0)
-        L_max = es + max(hi + tap_hi, far_occ) + near_occ
-        # along n
-        far_occ, near_occ = (occ_t1, occ_t0) if sign_n > 0 else (occ_t0, occ_t1)
-        hi = min(dn, max(B_hi - et, 0.0))
-        lo = min(max(B_lo - et, 0.0), hi)
-        g_near = min(dn, ktip * d)
-        zt, vt, vt1 = _axis(near_n, far_n, sign_n, max(g_near, near_occ), lo + half_lo,
-                            max(hi + half_hi, far_occ), kappa, kappa if near_occ > g_near else 1.0)
-        B_max = et + max(hi + half_hi, far_occ) + near_occ
-        z[i, 0] = zs * ch - zt * sh
-        z[i, 1] = zs * sh + zt * ch
-        ext[i, 0], ext[i, 1] = es, et
-        # R = H diag(vs, vt) Hᵀ + range noise along the line of sight + bearing noise across it
-        #     + heading uncertainty (the box turns about the visible corner) + a floor
-        vpsi = ps * ps * 0.25 * (L_max * L_max + B_max * B_max)
-        iso = floor * floor + vpsi
-        vr, vb = rs * rs, (r * bs) ** 2
-        R[i, 0, 0] = ch * ch * vs + sh * sh * vt + l0 * l0 * vr + l1 * l1 * vb + iso
-        R[i, 1, 1] = sh * sh * vs + ch * ch * vt + l1 * l1 * vr + l0 * l0 * vb + iso
-        R[i, 0, 1] = R[i, 1, 0] = ch * sh * (vs - vt) + l0 * l1 * (vr - vb)
-        R1[i, 0, 0] = ch * ch * vs1 + sh * sh * vt1 + l0 * l0 * vr + l1 * l1 * vb + iso
-        R1[i, 1, 1] = sh * sh * vs1 + ch * ch * vt1 + l1 * l1 * vr + l0 * l0 * vb + iso
-        R1[i, 0, 1] = R1[i, 1, 0] = ch * sh * (vs1 - vt1) + l0 * l1 * (vr - vb)
+        _hull_box_one(points, s, n, origin[0], origin[1], heading[i], heading_std[i], shadow, i, prm, z, R, ext, R1, i)
+    return z, R, ext, R1
+
+
+@njit(cache=True)
+def hull_box_pairs_kernel(points, offsets, origin, cols, heading, heading_std, shadow, prm):  # type: ignore[no-untyped-def]
+    """:func:`hull_box_kernel` of cluster ``cols[p]`` with axis ``heading[p]`` for each
+    ``p`` (a cluster measured once per track whose gate it is in, with that track's
+    course): ``z (p, 2)``, ``R (p, 2, 2)``, ``ext (p, 2)``, ``R1 (p, 2, 2)``."""
+    k = cols.shape[0]
+    z = np.full((k, 2), np.nan)
+    R = np.full((k, 2, 2), np.nan)
+    R1 = np.full((k, 2, 2), np.nan)
+    ext = np.full((k, 2), np.nan)
+    for p in range(k):
+        i = cols[p]
+        s, n = offsets[i], offsets[i + 1] - offsets[i]
+        if n == 0:
+            continue
+        _hull_box_one(points, s, n, origin[0], origin[1], heading[p], heading_std[p], shadow, i, prm, z, R, ext, R1, p)
     return z, R, ext, R1

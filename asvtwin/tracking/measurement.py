@@ -52,7 +52,7 @@ from asvtwin.checks import check_positive
 from asvtwin.errors import ParameterError, StateError
 from asvtwin.tracking.clustering import Clusters
 from asvtwin.tracking.ellipse import _C1, EllipseFits, _method_code
-from asvtwin.tracking.hull_model import hull_box_kernel
+from asvtwin.tracking.hull_model import hull_box_kernel, hull_box_pairs_kernel
 from asvtwin.tracking.measurement_kernels import (
     ais_model_kernel,
     lidar_model_kernel,
@@ -338,19 +338,13 @@ def hull_centres_for_pairs(clusters: Clusters, cols: NDArray[np.int64], heading_
         Single-scan covariance (for gates).
     """
     mdl = model or LidarModel()
-    cols = np.asarray(cols, np.int64)
-    off = np.asarray(clusters.offsets, np.int64)
-    sizes = off[cols + 1] - off[cols]
-    new_off = np.zeros(cols.size + 1, np.int64)
-    np.cumsum(sizes, out=new_off[1:])
-    # gather the pairs' points: cluster cols[p]'s returns at new_off[p]:new_off[p + 1]
-    idx = np.arange(new_off[-1], dtype=np.int64) + np.repeat(off[cols] - new_off[:-1], sizes)
-    points = np.ascontiguousarray(np.asarray(clusters.points, np.float64).reshape(-1, 2)[idx])
+    cols = np.ascontiguousarray(cols, np.int64)
+    points = np.ascontiguousarray(clusters.points, dtype=np.float64).reshape(-1, 2)
+    offsets = np.ascontiguousarray(clusters.offsets, dtype=np.int64)
     origin = np.asarray(clusters.origin_ned, dtype=np.float64).reshape(2)
     h = np.array(heading_rad, np.float64).reshape(cols.size)
     hs = np.maximum(np.asarray(heading_std_rad, np.float64).reshape(cols.size), mdl.heading_floor_rad)
-    shadow = np.ascontiguousarray(_end_shadows(clusters)[cols])
-    z, Ru, _, R = hull_box_kernel(points, new_off, origin, h, hs, shadow, _hull_prm(mdl), False)
+    z, Ru, _, R = hull_box_pairs_kernel(points, offsets, origin, cols, h, hs, _end_shadows(clusters), _hull_prm(mdl))
     return z, Ru, R
 
 

@@ -50,14 +50,16 @@ from asvtwin.tracking.measurement import (
     AisMeasurement,
     AisMeasurementBatch,
     LidarMeasurements,
+    _end_shadows,
+    _hull_prm,
     ais_measurements,
-    hull_centres_for_pairs,
     lidar_measurements,
 )
 from asvtwin.tracking.snapshot import TrackSnapshot
 from asvtwin.tracking.tracker_kernels import (
     coincident,
     near_tracks,
+    pair_measurements,
     position_mahalanobis,
     update_rows,
 )
@@ -416,35 +418,15 @@ class Tracker:
         ``R_update`` (the filter) and whether the course was used; ``cost`` is updated in
         place (pairs that leave the gate become :data:`FORBIDDEN`).
         """
-        a, cfg = self._a, self.config
-        ti, cj = np.nonzero(cost < FORBIDDEN)
-        ti, cj = ti.astype(np.int64), cj.astype(np.int64)
-        Ru = m.R if m.R_update is None else m.R_update
-        zp, Rp, Rpu = m.z[cj], m.R[cj], Ru[cj]
-        with_course = np.zeros(ti.size, bool)
-        if cfg.lidar.centre != "hull_box" or ti.size == 0 or not np.isfinite(cl.origin_ned).all():
-            return ti, cj, zp, Rp, Rpu, with_course  # (clusters without the sensor position keep the fitted centre)
-        v = a["x"][ti, 2:]
-        Pv = a["P"][ti, 2:, 2:]
-        sp2 = (v * v).sum(axis=1)
-        # var ψ = (v_e² P_nn − 2 v_n v_e P_ne + v_n² P_ee) / |v|⁴ (course of the CV velocity)
-        var = (v[:, 1] ** 2 * Pv[:, 0, 0] - 2.0 * v[:, 0] * v[:, 1] * Pv[:, 0, 1] + v[:, 0] ** 2 * Pv[:, 1, 1])
-        var = var / np.maximum(sp2, 1e-12) ** 2
-        ok = (sp2 >= cfg.course_min_speed_m_s ** 2) & (var <= cfg.course_max_std_rad ** 2)
-        if not ok.any():
-            return ti, cj, zp, Rp, Rpu, with_course
-        k = np.flatnonzero(ok)
-        z2, Ru2, R2 = hull_centres_for_pairs(cl, cj[k], np.arctan2(v[k, 1], v[k, 0]), np.sqrt(var[k]), cfg.lidar)
-        zp[k], Rp[k], Rpu[k] = z2, R2, Ru2
-        with_course[k] = True
-        # the pair's gate and cost with its own measurement (the arithmetic of gated_costs)
-        r = ti[k]
-        d2 = position_mahalanobis(z2 - a["x"][r, :2], np.ascontiguousarray(a["P"][r, :2, :2]), R2)
-        S = a["P"][r, :2, :2] + R2
-        det = S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] * S[:, 1, 0]
-        inside = d2 <= self._gL
-        cost[r, cj[k]] = np.where(inside, d2 + np.log(np.where(inside, det, 1.0)), FORBIDDEN)
-        return ti, cj, zp, Rp, Rpu, with_course
+        a, cfg, mdl = self._a, self.config, self.config.lidar
+        use_course = mdl.centre == "hull_box" and bool(np.isfinite(cl.origin_ned).all())
+        # (clusters without the sensor position keep the fitted centre)
+        return pair_measurements(
+            cost, a["x"], a["P"], m.z, m.R, m.R if m.R_update is None else m.R_update, use_course,
+            np.ascontiguousarray(cl.points, dtype=np.float64).reshape(-1, 2),
+            np.ascontiguousarray(cl.offsets, dtype=np.int64), np.asarray(cl.origin_ned, dtype=np.float64).reshape(2),
+            _end_shadows(cl), _hull_prm(mdl), mdl.heading_floor_rad, cfg.course_min_speed_m_s ** 2,
+            cfg.course_max_std_rad ** 2, self._gL, FORBIDDEN)
 
     def _update_sensor_filters(self, zL: _F8, RL: _F8, zA: _F8, RA: _F8) -> None:
         a, t = self._a, self._t

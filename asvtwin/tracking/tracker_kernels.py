@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from asvtwin.tracking.hull_model import _hull_box_one
 from asvtwin.tracking.kalman import _update_kernel
 
 __all__: list[str] = []  # internal kernels
@@ -113,3 +114,57 @@ def coincident(x, P, mmsi, gamma):  # type: ignore[no-untyped-def]
                 out_i.append(i)
                 out_j.append(j)
     return np.array(out_i, np.int64), np.array(out_j, np.int64)
+
+
+@njit(cache=True)
+def pair_measurements(cost, x, P, z0, R0, Ru0, use_course, points, offsets, origin, shadow, prm, heading_floor,
+                      min_speed2, max_course_var, gamma, forbidden):  # type: ignore[no-untyped-def]
+    """The measurement of every gated (track, cluster) pair (``cost < forbidden``, in
+    ``np.nonzero`` order), measured again with the track's course where it has one
+    (speed² ≥ ``min_speed2``, course variance ≤ ``max_course_var``) and re-gated with it;
+    ``cost`` is updated in place (:meth:`asvtwin.tracking.tracker.Tracker._pair_measurements`
+    says why). Returns ``ti, cj, z, R (single scan), R_update, with_course``."""
+    n, k = cost.shape
+    cnt = 0
+    for i in range(n):
+        for j in range(k):
+            if cost[i, j] < forbidden:
+                cnt += 1
+    ti = np.empty(cnt, np.int64)
+    cj = np.empty(cnt, np.int64)
+    zp = np.empty((cnt, 2))
+    Rp = np.empty((cnt, 2, 2))
+    Rpu = np.empty((cnt, 2, 2))
+    ext = np.empty((cnt, 2))
+    wc = np.zeros(cnt, np.bool_)
+    p = 0
+    for i in range(n):
+        for j in range(k):
+            if not cost[i, j] < forbidden:
+                continue
+            ti[p], cj[p] = i, j
+            zp[p] = z0[j]
+            Rp[p] = R0[j]
+            Rpu[p] = Ru0[j]
+            if use_course:
+                v0, v1 = x[i, 2], x[i, 3]
+                sp2 = v0 * v0 + v1 * v1
+                # var ψ = (v_e² P_nn − 2 v_n v_e P_ne + v_n² P_ee) / |v|⁴ (course of the CV velocity)
+                var = v1 * v1 * P[i, 2, 2] - 2.0 * v0 * v1 * P[i, 2, 3] + v0 * v0 * P[i, 3, 3]
+                var = var / max(sp2, 1e-12) ** 2
+                if sp2 >= min_speed2 and var <= max_course_var:
+                    _hull_box_one(points, offsets[j], offsets[j + 1] - offsets[j], origin[0], origin[1],
+                                  np.arctan2(v1, v0), max(np.sqrt(var), heading_floor), shadow, j, prm,
+                                  zp, Rpu, ext, Rp, p)
+                    wc[p] = True
+                    # the pair's gate and cost with its own measurement (gated_costs' arithmetic)
+                    a = P[i, 0, 0] + Rp[p, 0, 0]
+                    b = P[i, 0, 1] + Rp[p, 0, 1]
+                    c = P[i, 1, 1] + Rp[p, 1, 1]
+                    det = a * c - b * b
+                    dn, de = zp[p, 0] - x[i, 0], zp[p, 1] - x[i, 1]
+                    d2 = (c * dn * dn - 2.0 * b * dn * de + a * de * de) / det if det > 0.0 else np.inf
+                    det2 = a * c - b * (P[i, 1, 0] + Rp[p, 1, 0])
+                    cost[i, j] = d2 + np.log(det2) if d2 <= gamma else forbidden
+            p += 1
+    return ti, cj, zp, Rp, Rpu, wc
