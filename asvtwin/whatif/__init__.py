@@ -25,7 +25,14 @@ from asvtwin.whatif.risk import (
     recommend,
     summarise,
 )
-from asvtwin.whatif.rollout import RolloutConfig, RolloutResult, Samples, draw_samples, simulate
+from asvtwin.whatif.rollout import (
+    RolloutConfig,
+    RolloutResult,
+    Samples,
+    draw_samples,
+    filter_config,
+    simulate,
+)
 
 __all__ = [
     "DECISIONS",
@@ -43,6 +50,7 @@ __all__ = [
     "default_alternatives",
     "draw_samples",
     "encounters",
+    "filter_config",
     "fork",
     "fork_scenario",
     "parse_alternative",

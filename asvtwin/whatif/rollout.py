@@ -43,7 +43,15 @@ cheap object once the solver is loaded) is the expensive part: 100 futures × 24
    against the full rate (below);
 5. a fallback plan (nothing certified) is followed for ``fallback_hold_stages`` stage
    (one 4.2 s stage at full scale instead of re-solving every 0.5 s; at model scale the
-   stage is the period, so nothing changes).
+   stage is the period, so nothing changes), unless the strict rule of 2 certifies it
+   for this future's targets: then it is held like a certified plan, as in 3
+   (``hold_certified_fallbacks``);
+6. a future's filter, new at its first call, starts its solver from the last plan a
+   sibling's filter solved (``warm_from_siblings``): the filter's warm start, two QPs,
+   instead of ``cold_start_solves`` (5) from a coasting guess;
+7. the solver's circle slots are sized to the fork (:func:`filter_config`, 4 for up to
+   four targets instead of 20): the unused slots are far-away dummies that never bind,
+   but every QP iteration carries them.
 
 The solver is shared by the filters of a process; its iterate is reset before every call,
 so a future's answer does not depend on which future solved before it (same seed, same
@@ -154,7 +162,6 @@ class RolloutConfig:
     share_group: int = 10
     warm_from_siblings: bool = True
     hold_certified_fallbacks: bool = True
-    recheck_holds: bool = False
     circle_slots: bool = True
 
     def __post_init__(self) -> None:
@@ -276,7 +283,7 @@ class RolloutResult:
         info = dict(parts[0].info)
         for k in ("filter_calls", "filters_built", "u_L_precertified",
                   "filter_kept_u_L", "plans_shared", "warm_from_siblings",
-                  "fallbacks_certified", "holds_rechecked", "cpu_s"):
+                  "fallbacks_certified", "cpu_s"):
             info[k] = float(sum(p.info.get(k, 0.0) for p in parts))
         return RolloutResult(**cat, track_t_s=parts[0].track_t_s, info=info)
 
@@ -443,35 +450,6 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
     rec_t = [0.0]
     rec = [sim.state[:, :2].reshape(A, R, 2).copy()]
     n_filtered = 0
-    hold_until = np.full(A * R, -np.inf)  # economy: a certified plan is held until then
-    n_held = 0
-
-    def _hold(j: int) -> None:
-        """Economy: future ``j`` follows its certified plan, re-checked at every filter
-        period (``recheck_holds``), or blindly for ``plan_hold_stages``."""
-        hold_until[j] = t + cfg.plan_hold_stages * pdt
-        next_call[j] = t + (fper if cfg.recheck_holds else max(cfg.plan_hold_stages * pdt,
-                                                                  fper))
-
-    def _still_certified(j: int) -> bool:
-        """Follow the held certified plan of future ``j`` on while its remainder stays
-        certified for this future's targets now (re-checked at every filter period)."""
-        nonlocal n_held
-        plan = plans.get(j)
-        if plan is None or t + 1e-9 >= hold_until[j]:
-            return False
-        i, r = divmod(j, R)
-        s_i = min(int((t - plan[0]) / pdt + 1e-9), N - 1)
-        Us = np.zeros((N, 3))
-        Us[: N - s_i] = plan[1][s_i:]
-        if cert.first_certified(x[j], samples.d[r], targets[i].p[r],  # type: ignore[union-attr]
-                                targets[i].velocity[r], due_segs[j], [Us]) != 0:
-            return False
-        due_segs.pop(j)
-        u_apply[j] = Us[0]
-        next_call[j] = t + fper
-        n_held += 1
-        return True
 
     x = sim.state
     for k in range(steps):
@@ -554,8 +532,6 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
                     u_apply[j] = u0[j]
                 n_precert += int(ok.sum())
                 due_j = [int(j) for j in jj[~ok]]
-                if cfg.recheck_holds:
-                    due_j = [j for j in due_j if not _still_certified(j)]
             for j in due_j:
                 i, r = divmod(j, R)
                 tg = targets[i]
@@ -582,7 +558,7 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
                         lim = 0.01 * (proto.u_ub - proto.u_lb)
                         uLc = np.clip(u_L[j], proto.u_lb, proto.u_ub)
                         inter[j] += int(np.any((lim > 0) & (np.abs(uLc - Us[0]) > lim)))
-                        _hold(j)
+                        next_call[j] = t + max(cfg.plan_hold_stages * pdt, fper)
                         n_shared += 1
                         continue
                 f = filt.get(j)
@@ -641,7 +617,7 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
                     next_call[j] = t + fper
                 elif held_ok:
                     plans[j] = (t, np.asarray(res.u_pred, dtype=float))
-                    _hold(j)
+                    next_call[j] = t + max(cfg.plan_hold_stages * pdt, fper)
                 else:
                     plans[j] = (t, np.asarray(res.u_pred, dtype=float))
                     next_call[j] = t + max(cfg.fallback_hold_stages * pdt, fper)
@@ -678,6 +654,6 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
         info={"filter_calls": float(n_filtered), "filters_built": float(len(filt)),
               "u_L_precertified": float(n_precert), "filter_kept_u_L": float(n_passed),
               "plans_shared": float(n_shared), "warm_from_siblings": float(n_warm),
-              "fallbacks_certified": float(n_fb_cert), "holds_rechecked": float(n_held),
+              "fallbacks_certified": float(n_fb_cert),
               "cpu_s": time.process_time() - cpu0,
               "steps": float(steps), "dt_s": dt, "filter_period_s": fper})

@@ -128,3 +128,36 @@ def test_filter_economy_agrees_with_the_full_rate_filter_at_full_scale():
         assert abs(e.min_distance_m[1] - full.min_distance_m[1]) < 0.1 * d_safe
     assert runs[False].alternatives[0].interventions > 0  # the full rate had work to do
     assert runs[True].timing["filter_calls"] * 5 <= runs[False].timing["filter_calls"]
+
+
+def test_circle_slots_sized_to_the_fork_leave_the_filters_answer_unchanged():
+    """The rollouts' filter has 4 circle slots for up to four targets (8 up to eight, the
+    filter's 20 beyond) and the same answer as the twin's 20-slot filter: the slots no
+    target fills are dummies that never bind. Checked on a head-on and a crossing vessel
+    at both hull scales (u0 within 1 % of the actuator range, the same fallback)."""
+    from asvtwin.control import MovingObstacles, PsfConfig, SafetyFilter
+    from asvtwin.vessel import cybership2, cybership2_full_scale
+    from asvtwin.whatif import filter_config
+
+    cfg = RolloutConfig()
+    assert [filter_config(cfg, m).n_circles for m in (0, 1, 4, 5, 8, 9)] == [4, 4, 4, 8, 8, 20]
+    assert filter_config(RolloutConfig(economy=False), 1).n_circles == PsfConfig().n_circles
+    for p in (cybership2(), cybership2_full_scale()):
+        L, v = p.length, 0.3 * (p.length / 1.255) ** 0.5
+        sized = SafetyFilter(p, config=filter_config(cfg, 1))
+        twin = SafetyFilter(p, config=PsfConfig())
+        assert sized.config.n_circles == 4 and twin.config.n_circles == 20
+        x = [0.0, 0.0, 0.0, v, 0.0, 0.0]
+        u_L = [0.5 * twin.u_ub[0], 0.0, 0.0]
+        for pos, vel in (([6 * L, 0.0], [-v, 0.0]),           # head-on
+                         ([4 * L, 3 * L], [0.0, -0.75 * v])):  # crossing from starboard
+            answers = []
+            for f in (sized, twin):
+                f.reset()
+                obs = MovingObstacles.constant_velocity([pos], [vel], [0.5 * L],
+                                                        N=f.config.N, dt_s=f.config.dt_s)
+                answers.append(f.filter(x, u_L, obs, t_s=0.0))
+            a, b = answers
+            assert not (a.passed_through or b.passed_through)  # both asked their solver
+            assert a.fallback == b.fallback
+            assert np.all(np.abs(a.u0 - b.u0) <= 0.01 * twin.u_range), (a.u0, b.u0)
