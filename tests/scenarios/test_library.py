@@ -161,16 +161,20 @@ needs_runtime = pytest.mark.skipif(not HAVE_RUNTIME,
 
 
 @needs_runtime
-def test_short_model_scale_encounter_keeps_its_distance():
-    """Short real version (default): the model-scale crossing through its encounter (the
-    ships would meet at about 39 s); no collision and the distance criterion holds."""
+def test_model_scale_crossing_gives_way_and_completes_its_route():
+    """Short real version (default; about 20 s of CPU): the model-scale crossing run whole
+    through the twin. The own ship gives way to the model crossing from starboard, keeps
+    the distance criterion, returns to its 20 m route and reaches its end (it wandered
+    23 m off before the tracker was Froude-scaled and the give-way layer added)."""
     from asvtwin.twin.runtime import run_scenario
 
     s = load_library("model_scale_crossing")
-    summary = run_scenario(s, seed=s.seed, duration_s=60.0, record=False)
+    summary = run_scenario(s, seed=s.seed, record=False)
     text = summary.text()
     assert summary.collisions == 0 and summary.groundings == 0, text
-    assert min(summary.min_distance_targets_m.values()) >= s.criteria.min_distance_targets_m, text
+    for key, crit in summary.criteria.items():
+        assert crit["pass"], f"model_scale_crossing: criterion {key} failed\n{text}"
+    assert summary.max_cte_m < 10.0, text  # 8 L: it gives way to starboard, then returns
 
 
 @needs_runtime
