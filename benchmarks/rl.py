@@ -19,7 +19,11 @@
   on (setup ``ppo_psf_moving``): two whole ``asvtwin train`` processes (seeds 0 and 1)
   started together, their environment steps summed over the wall time until both ended
   (``asvtwin study`` runs its seeds and setups this way, two processes by default).
-  ``ppo_psf_steps_per_s_1proc`` is one such process alone. Early in training the agent
+  ``ppo_psf_steps_per_s_1proc`` is one such process alone. ``*_cpu_ms_per_step``: the
+  training processes' own CPU time (user + system, from the kernel's accounting of the
+  waited-for children) per environment step, start-up included: the load-independent
+  figure to compare on a shared machine (two processes on two free cores give at most
+  2000 / ``ppo_psf_cpu_ms_per_step`` steps/s). Early in training the agent
   rarely gets near obstacles, so the filter is called less often than in a trained
   agent's episodes.
 
@@ -36,6 +40,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -106,10 +111,17 @@ def _train_cmd(setup: str, steps: int, seed: int, out: str) -> list[str]:
             "--checkpoint-every", str(10 * steps)]
 
 
-def _train_rate(setup: str, steps: int, procs: int = 1) -> float:
-    """Environment steps per second of ``procs`` whole training processes run together."""
+def _children_cpu_s() -> float:
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def _train_rate(setup: str, steps: int, procs: int = 1) -> tuple[float, float]:
+    """Environment steps per second of ``procs`` whole training processes run together,
+    and their CPU time per environment step [ms]."""
     env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0")
     with tempfile.TemporaryDirectory() as tmp:
+        c0 = _children_cpu_s()
         t0 = time.perf_counter()
         ps = [subprocess.Popen(_train_cmd(setup, steps, seed, f"{tmp}/{seed}"),
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
@@ -119,7 +131,8 @@ def _train_rate(setup: str, steps: int, procs: int = 1) -> float:
             if p.returncode:
                 raise RuntimeError(f"asvtwin train failed ({p.returncode}): "
                                    f"{err.decode()[-2000:]}")
-        return procs * steps / (time.perf_counter() - t0)
+        wall = time.perf_counter() - t0
+        return procs * steps / wall, 1000 * (_children_cpu_s() - c0) / (procs * steps)
 
 
 def main() -> None:
@@ -131,8 +144,8 @@ def main() -> None:
     ap.add_argument("--train-repeats", type=int, default=1)
     args = ap.parse_args()
     med = lambda f, *a: float(np.median([f(*a) for _ in range(args.repeats)]))
-    tmed = lambda *a: float(np.median(
-        [_train_rate(*a) for _ in range(args.train_repeats)]))
+    tmed = lambda *a: tuple(np.median(
+        [_train_rate(*a) for _ in range(args.train_repeats)], axis=0).tolist())
     rate_after, per_k, x_after = _psf_rate(True, args.psf_steps)
     rate_before, per_k_before, x_before = _psf_rate(False, args.psf_steps)
     out = {
@@ -143,16 +156,20 @@ def main() -> None:
         "psf_same_trajectories": bool(np.array_equal(x_after, x_before)),
         **{f"{k}_per_1000_steps": v for k, v in per_k.items()},
         **{f"{k}_per_1000_steps_before": v for k, v in per_k_before.items()},
-        "ppo_steps_per_s": round(tmed("ppo", args.train_steps)),
-        "ppo_psf_steps_per_s": round(tmed("ppo_psf_moving", args.train_steps, 2)),
-        "ppo_psf_steps_per_s_1proc": round(tmed("ppo_psf_moving", args.train_steps)),
+    }
+    for key, setup, procs, tail in (("ppo", "ppo", 1, ""), ("ppo_psf", "ppo_psf_moving", 2, ""),
+                                    ("ppo_psf", "ppo_psf_moving", 1, "_1proc")):
+        rate, cpu_ms = tmed(setup, args.train_steps, procs)
+        out[f"{key}_steps_per_s{tail}"] = round(rate)
+        out[f"{key}_cpu_ms_per_step{tail}"] = round(cpu_ms, 2)
+    out.update({
         "train_steps": args.train_steps,
         "repeats": args.repeats,
         "train_repeats": args.train_repeats,
         "goal_env_steps_per_s": 20000,
         "goal_ppo_psf_steps_per_s": 500,
         "load_avg_1min": round(os.getloadavg()[0], 2),
-    }
+    })
     print(json.dumps(out))
 
 
