@@ -137,6 +137,16 @@ def _read_run(out_dir: Path) -> dict[str, Any]:
         raise CheckpointError(f"{path}: not valid JSON ({exc}); cannot resume") from exc
 
 
+def _comparable(setup: str, key: str, value: Any) -> Any:
+    """A ``run.json`` entry as the resume check compares it: the filter's settings
+    (``psf_*``) are left out of a ``ppo`` run's environment, where no filter runs (a run
+    logged before such a setting existed resumes; a filtered run must match exactly)."""
+    value = json.loads(json.dumps(value))
+    if setup == "ppo" and key == "env" and isinstance(value, dict):
+        value = {k: v for k, v in value.items() if not k.startswith("psf_")}
+    return value
+
+
 def _truncate_csv(path: Path, max_step: int) -> int:
     if not path.exists():
         return 0
@@ -179,7 +189,7 @@ def train(setup: str, *, steps: int, seed: int, out_dir: str | Path,
     if resume and latest.exists():
         prev = _read_run(out)
         for key in ("setup", "seed", "env", "ppo"):
-            if json.loads(json.dumps(prev.get(key))) != json.loads(json.dumps(request[key])):
+            if _comparable(setup, key, prev.get(key)) != _comparable(setup, key, request[key]):
                 raise CheckpointError(
                     f"{out / 'run.json'}: {key} is {prev.get(key)!r}, the request has "
                     f"{request[key]!r}; resume only the same run (or use a new --out)")

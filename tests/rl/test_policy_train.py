@@ -80,6 +80,23 @@ def test_resume_continues_and_refuses_foreign_runs(run, tmp_path: Path) -> None:
               resume=True)
     with pytest.raises(CheckpointError, match="seed is 3"):
         train("ppo", steps=2048, seed=4, out_dir=out, env_config=ENV, ppo=TINY, resume=True)
+    # a filter setting changed since the run was logged: irrelevant without a filter,
+    # refused for a filtered setup
+    meta = json.loads((out / "run.json").read_text())
+    del meta["env"]["psf_solver_circles"]
+    (out / "run.json").write_text(json.dumps(meta))
+    res = train("ppo", steps=1280, seed=3, out_dir=out, env_config=ENV, ppo=TINY,
+                checkpoint_every=256, resume=True)
+    assert res.steps == 1280
+    logged = (out / "run.json").read_text()
+    meta = json.loads(logged)
+    meta["setup"] = meta["env"]["setup"] = "ppo_psf"
+    del meta["env"]["psf_solver_circles"]
+    (out / "run.json").write_text(json.dumps(meta))
+    with pytest.raises(CheckpointError, match="env is .*psf_solver_circles"):
+        train("ppo_psf", steps=2048, seed=3, out_dir=out,
+              env_config=ENV, ppo=TINY, resume=True)
+    (out / "run.json").write_text(logged)
     (out / "checkpoints" / "latest.zip").write_bytes(b"PK\x03\x04 not a zip at all")
     with pytest.raises(CheckpointError, match=r"latest.zip: cannot load the checkpoint"):
         train("ppo", steps=2048, seed=3, out_dir=out, env_config=ENV, ppo=TINY, resume=True)
