@@ -197,7 +197,7 @@ def select_candidate(rows: list[Scored], x: _F8, m0: _F8, cert: Certifier, *,
     - Certified candidates exist: the one nearest u_L (W-norm), preferring first one
       that does not go to port where COLREG expects starboard (``prefer_starboard``:
       rules 14, 15, 17(c)), then one whose yaw rate stays within ``r_comfort`` [rad/s]
-      (or the present |r|, if larger).
+      (or the present |r|, if larger), else the one that exceeds it least.
     - Inside d_safe (some stage-0 margin ``m0`` < 0): the plan that gets out without
       closing in, then the one that ends furthest out.
     - Otherwise the largest closest approach; where COLREG expects starboard, a
@@ -209,8 +209,9 @@ def select_candidate(rows: list[Scored], x: _F8, m0: _F8, cert: Certifier, *,
     def port(r: Scored) -> bool:
         return prefer_starboard and plan_side(r.X, length_m) < 0
 
-    def brisk(r: Scored) -> bool:  # the plan turns faster than the comfort bound
-        return bool(np.max(np.abs(r.X[1:, 5])) > max(r_comfort, abs(float(x[5]))))
+    def brisk(r: Scored) -> float:  # how far the plan turns beyond the comfort bound
+        return max(float(np.max(np.abs(r.X[1:, 5]))) - max(r_comfort, abs(float(x[5]))),
+                   0.0)
 
     def closest(r: Scored) -> tuple[float, float]:
         return (r.closest if math.isfinite(r.closest) else -1e300, r.term)
@@ -218,7 +219,7 @@ def select_candidate(rows: list[Scored], x: _F8, m0: _F8, cert: Certifier, *,
     certified = [r for r in rows if r.certified]
     note = ""
     if certified:
-        pick = min(certified, key=lambda r: (port(r), brisk(r), r.dist))
+        pick = min(certified, key=lambda r: (port(r), brisk(r), r.dist))  # the least brisk
         if port(min(certified, key=lambda r: r.dist)) and not port(pick):
             note = "starboard preferred (COLREG), a port plan was nearer u_L"
     elif m0.size and m0.min() < 0:  # inside d_safe: out by the end, no closer on the way
