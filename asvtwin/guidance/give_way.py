@@ -160,14 +160,25 @@ class GiveWay:
         ok = np.isfinite(p).all(axis=1) & np.isfinite(v).all(axis=1)
         ids_a, p, v = ids_a[ok], p[ok], v[ok]
         speed = max(float(speed_m_s), 1e-6)
-        # 1. who enters: give-way encounters with a risk at the present velocities
+        # 1. who enters: give-way encounters with a risk at the present velocities (the
+        # ARPA risk test first, vectorised: only the few vessels at risk are classified)
         if len(ids_a):
-            enc = classify_encounters(x, p, v, limits=EncounterLimits(
-                cpa_limit_m=self.pass_distance_m, tcpa_limit_s=self.tcpa_limit_s,
-                min_speed_m_s=self.min_speed_m_s))
-            for i, k in enumerate(enc.kind):
-                if k in _GIVE_WAY_KINDS and int(ids_a[i]) not in self._active:
-                    self._active[int(ids_a[i])] = k
+            from asvtwin.control.colreg import cpa_tcpa
+
+            psi = float(x[2])
+            v_own = np.array([math.cos(psi) * x[3] - math.sin(psi) * x[4],
+                              math.sin(psi) * x[3] + math.cos(psi) * x[4]])
+            cpa_now, tcpa_now = cpa_tcpa(p - x[:2], v - v_own)
+            risk = (cpa_now < self.pass_distance_m) & (tcpa_now >= 0.0) & \
+                (tcpa_now <= self.tcpa_limit_s)
+            if risk.any():
+                r = np.flatnonzero(risk)
+                enc = classify_encounters(x, p[r], v[r], limits=EncounterLimits(
+                    cpa_limit_m=self.pass_distance_m, tcpa_limit_s=self.tcpa_limit_s,
+                    min_speed_m_s=self.min_speed_m_s))
+                for i, k in zip(r, enc.kind, strict=True):
+                    if k in _GIVE_WAY_KINDS and int(ids_a[i]) not in self._active:
+                        self._active[int(ids_a[i])] = k
         # a target no longer tracked is forgotten
         known = {int(i) for i in ids_a}
         for tid in [t for t in self._active if t not in known]:
