@@ -131,6 +131,9 @@ def test_selection_among_certified_candidates_colreg_then_comfort_then_least_cha
     calm = _row(stb, +1, 0.5, True, dist=0.3, r=0.1)
     assert _select([brisk, calm], prefer=True) is calm
     assert _select([brisk, calm], prefer=True).X[1:, 5].max() <= 0.1575
+    # none within the bound: the one that exceeds it least, though further from u_L
+    brisker = _row(stb, +1, 0.5, True, dist=0.05, r=0.39)
+    assert _select([brisker, brisk], prefer=True) is brisk
 
 
 @pytest.mark.parametrize("hull", [cybership2, cybership2_full_scale])
