@@ -51,7 +51,9 @@ cheap object once the solver is loaded) is the expensive part: 100 futures × 24
    instead of ``cold_start_solves`` (5) from a coasting guess;
 7. the solver's circle slots are sized to the fork (:func:`filter_config`, 4 for up to
    four targets instead of 20): the unused slots are far-away dummies that never bind,
-   but every QP iteration carries them.
+   but every QP iteration carries them;
+8. after an uncertified solve the filter takes its checked fallback without a retry QP
+   (``filter_retries`` = 0; the twin's filter retries once).
 
 The solver is shared by the filters of a process; its iterate is reset before every call,
 so a future's answer does not depend on which future solved before it (same seed, same
@@ -136,6 +138,9 @@ class RolloutConfig:
         Economy: a future's filter, new at its first call, starts its solver from the
         last plan the filter solved for a sibling future (same alternative and group)
         instead of a cold guess (two QPs instead of ``cold_start_solves``).
+    filter_retries : int
+        Economy: the filter's ``uncertified_retries`` (the twin's filter: 1). A retry is
+        one more QP, linearised at the fallback candidate, after an uncertified solve.
     hold_certified_fallbacks : bool
         Economy: a fallback plan that the strict rule of
         :class:`~asvtwin.whatif.certify.ULCertifier` certifies for this future is held
@@ -163,6 +168,7 @@ class RolloutConfig:
     warm_from_siblings: bool = True
     hold_certified_fallbacks: bool = True
     circle_slots: bool = True
+    filter_retries: int = 0
 
     def __post_init__(self) -> None:
         for name in ("horizon_s", "turn_max_deg", "record_every_s"):
@@ -179,7 +185,7 @@ class RolloutConfig:
                                  f"p_turn={self.p_turn} must be in [0, 1] with a sum <= 1")
         for name, lo in (("plan_hold_stages", 1), ("fallback_hold_stages", 0),
                          ("share_plans", 0), ("share_group", 1),
-                         ("cold_start_solves", 0)):
+                         ("cold_start_solves", 0), ("filter_retries", 0)):
             v = getattr(self, name)
             if not (isinstance(v, int) and lo <= v <= 50):
                 raise ParameterError(f"RolloutConfig.{name} must be an integer in [{lo}, 50], "
@@ -296,12 +302,15 @@ def filter_config(config: RolloutConfig, n_targets: int) -> PsfConfig:
     solver carries through every iteration. With ``circle_slots`` (economy) the slots
     are sized to the fork: the smallest of 4, 8, 20 that holds every target, so the
     solver sees the same obstacles with fewer idle constraints (one solver build per
-    size, cached on disk)."""
+    size, cached on disk). The economy also sets the filter's ``uncertified_retries`` to
+    ``filter_retries`` (0: after an uncertified solve the filter takes its checked
+    fallback at once, without a second QP linearised at it)."""
     nc = PsfConfig.n_circles
     if config.economy and config.circle_slots:
         nc = next((k for k in (4, 8) if n_targets <= k), nc)
+    retries = config.filter_retries if config.economy else PsfConfig.uncertified_retries
     return PsfConfig(backend=config.psf_backend, cold_start_solves=config.cold_start_solves or 5,
-                     n_circles=nc)
+                     n_circles=nc, uncertified_retries=retries)
 
 
 def _course_over_ground(x: _F8) -> float:

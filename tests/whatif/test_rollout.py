@@ -132,20 +132,25 @@ def test_filter_economy_agrees_with_the_full_rate_filter_at_full_scale():
 
 def test_circle_slots_sized_to_the_fork_leave_the_filters_answer_unchanged():
     """The rollouts' filter has 4 circle slots for up to four targets (8 up to eight, the
-    filter's 20 beyond) and the same answer as the twin's 20-slot filter: the slots no
-    target fills are dummies that never bind. Checked on a head-on and a crossing vessel
+    filter's 20 beyond) and the same answer as with 20 slots: the slots no target fills
+    are dummies that never bind. (The full rate keeps the twin's filter settings.) Checked on a head-on and a crossing vessel
     at both hull scales (u0 within 1 % of the actuator range, the same fallback)."""
+    import dataclasses
+
     from asvtwin.control import MovingObstacles, PsfConfig, SafetyFilter
     from asvtwin.vessel import cybership2, cybership2_full_scale
     from asvtwin.whatif import filter_config
 
     cfg = RolloutConfig()
     assert [filter_config(cfg, m).n_circles for m in (0, 1, 4, 5, 8, 9)] == [4, 4, 4, 8, 8, 20]
-    assert filter_config(RolloutConfig(economy=False), 1).n_circles == PsfConfig().n_circles
+    full_rate = filter_config(RolloutConfig(economy=False), 1)
+    assert (full_rate.n_circles, full_rate.uncertified_retries) == (
+        PsfConfig().n_circles, PsfConfig().uncertified_retries)  # the twin's filter
+    assert filter_config(cfg, 1).uncertified_retries == 0
     for p in (cybership2(), cybership2_full_scale()):
         L, v = p.length, 0.3 * (p.length / 1.255) ** 0.5
         sized = SafetyFilter(p, config=filter_config(cfg, 1))
-        twin = SafetyFilter(p, config=PsfConfig())
+        twin = SafetyFilter(p, config=dataclasses.replace(filter_config(cfg, 1), n_circles=20))
         assert sized.config.n_circles == 4 and twin.config.n_circles == 20
         x = [0.0, 0.0, 0.0, v, 0.0, 0.0]
         u_L = [0.5 * twin.u_ub[0], 0.0, 0.0]
@@ -166,8 +171,8 @@ def test_circle_slots_sized_to_the_fork_leave_the_filters_answer_unchanged():
 def test_filter_economy_agrees_with_the_full_rate_on_the_benchmark_question():
     """The benchmark's question (head-on at 240 s, the coaster tracked to 0.5 ship
     lengths, as ``fork_scenario`` forks it): the economy with every step on (circle
-    slots, sibling warm starts, certified fallbacks held) against the full 2 Hz filter on
-    the same draws. Each collision estimate lies inside the other's 95 % interval and the
+    slots, no retry QP, sibling warm starts, certified fallbacks held) against the full
+    2 Hz filter (the twin's settings) on the same draws. Each collision estimate lies inside the other's 95 % interval and the
     economy's 5 % closest approach is no nearer than the full rate's less 10 % of d_safe.
     Short in CI (2 futures × 60 s); ASVTWIN_FULL=1: 6 futures × 120 s. (Measured, 6 ×
     120 s: 30 filter calls against 1,728, 2.6 against 40 CPU s; the route's closest
