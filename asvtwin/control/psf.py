@@ -353,12 +353,7 @@ class SafetyFilter:
                 cert, why, path_low = self._cert.judge(margins, low, term, finite, m0)
                 if not ok:
                     cert, why = False, f"solver failed ({status})"
-                elif (finite and not cert and rnd == cfg.uncertified_retries
-                      and self._slots.V_hat < 1.0):
-                    # only where stage N's end-speed bound is on (a static obstacle or the
-                    # coast near the plan's end: what the repair is for), and in the last
-                    # round: the rounds before go through the candidates, which may
-                    # re-initialise the solver out of its basin
+                elif finite and not cert:
                     coasted = self._coast_tail(x, U, d, centres, radii, segs, m0)
                     if coasted is not None:
                         X, U, margins, term, cert, why, path_low = coasted

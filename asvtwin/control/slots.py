@@ -57,8 +57,6 @@ class SolverSlots:
         self._dummy_segment = np.array([-far, -far, -far, -far + 1.0])
         self._r_end = np.zeros(nc)  # stage N's circle radii as given (per call)
         self._V_floor: float | None = None  # the lowest reachable end speed (per call)
-        #: stage N's end-speed bound of the last :meth:`set_terminal` (1: the box is off)
-        self.V_hat = 1.0
         self._moving = np.zeros(nc, dtype=bool)  # which slots hold moving circles
         self._logged = False
 
@@ -147,7 +145,6 @@ class SolverSlots:
         extra = c.terminal_requirement_at(V_hat)
         self.P[-1, 3] = c.d_safe_m + extra + c.tol_m
         self.P[-1, -1] = math.sqrt(V_hat) if V_hat < 1.0 else BOX_OFF
-        self.V_hat = V_hat
         self.circ[-1, :, 2] = self._r_end + np.where(self._moving, c.d_f_m - extra, 0.0)
         return V_hat
 

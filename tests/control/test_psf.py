@@ -54,7 +54,7 @@ def test_unsafe_input_is_corrected_and_explained(psf):
     kinds = {a.kind for a in res.active}
     assert res.active  # what binds in the applied plan is listed
     assert "obstacle 0 ahead" in res.explanation  # the cause, from the plan with u_L
-    if res.backend != "acados-rti":  # a converged optimum sits on what made it change u0
+    if "tail coasted" not in res.status:  # a coasted tail ends clear of what the solver met
         assert "circle" in kinds or "terminal_set" in kinds
         assert res.critical or "terminal_set" in kinds
 
