@@ -69,25 +69,9 @@ class Certifier:
     def terminal_requirement(self, nu_end: _F8) -> float:
         """What stage N must keep beyond d_safe from static obstacles [m] for a plan
         ending at velocity ``nu_end``: d_f (1 − c (1 − √V_N)), c the credit factor."""
-        return self.terminal_requirement_at(float(nu_end @ self.P_f @ nu_end))
-
-    def terminal_requirement_at(self, V: float) -> float:
-        """The same for an end speed V = ν_Nᵀ P_f ν_N: d_f (1 − c (1 − √V)), V clipped
-        to [0, 1]."""
+        V = float(nu_end @ self.P_f @ nu_end)
         root = math.sqrt(min(max(V, 0.0), 1.0))
         return self.d_f_m * (1.0 - self.credit_factor * (1.0 - root))
-
-    def speed_bound_for(self, room_m: float) -> float:
-        """The largest end speed V ∈ [0, 1] whose requirement fits in ``room_m`` beyond
-        d_safe (the inverse of :meth:`terminal_requirement_at`): 1 when even the full
-        d_f fits, 0 when not even the part the credit cannot waive does."""
-        if room_m >= self.d_f_m:
-            return 1.0
-        c = self.credit_factor
-        if c <= 0.0:
-            return 0.0
-        root = 1.0 - (1.0 - max(room_m, 0.0) / self.d_f_m) / c
-        return min(max(root, 0.0), 1.0) ** 2
 
     def margins(self, X: _F8, centres: _F8, radii: _F8, segs: _F8,
                 ) -> tuple[_F8, float, float, bool]:

@@ -325,7 +325,7 @@ class SafetyFilter:
                              max(1, N // 3))
             xg, ug = self._simulate(x, cand, d)
         P, _, _ = self._slots.fill(x, d, centres, radii, segs, [X_L[:, :2], xg[:, :2]],
-                                     xg[-1, 3:], self._coast_end_speed(x, d), moving)
+                                     xg[-1, 3:], moving)
         # warm: 1 solve; after calls that kept u_L without a solve the iterate is stale: 2;
         # cold (no plan at all): cold_start_solves (RTI: one QP each)
         attempts = (1 if self._solved_last else min(2, cfg.cold_start_solves)
@@ -337,7 +337,7 @@ class SafetyFilter:
         chosen_kind, chosen_detail = Fallback.NONE, ""
         for rnd in range(1 + cfg.uncertified_retries):
             for _ in range(attempts):
-                self._slots.set_terminal(xg[-1, :2], xg[-1, 3:])  # stage N as the guess ends
+                self._slots.set_terminal(xg[-1, 3:])  # stage N as the guess ends
                 try:
                     with backend_lock(self.backend):  # shared per process: one at a time
                         raw = self.backend.solve(x, uL, P, xg, ug)
@@ -353,12 +353,6 @@ class SafetyFilter:
                 cert, why, path_low = self._cert.judge(margins, low, term, finite, m0)
                 if not ok:
                     cert, why = False, f"solver failed ({status})"
-                elif finite and not cert:
-                    coasted = self._coast_tail(x, U, d, centres, radii, segs, m0)
-                    if coasted is not None:
-                        X, U, margins, term, cert, why, path_low = coasted
-                        status = f"{status}; its tail coasted from {why}"
-                        why = ""
                 if raw is not None and ok and np.isfinite(raw.x).all():
                     self._last = (t_s, raw.x, U)  # the next warm start, certified or not
                     xg, ug = raw.x, U
@@ -410,40 +404,6 @@ class SafetyFilter:
         U[0] = uL
         out.append(U)
         return out
-
-    def _coast_tail(self, x: _F8, U: _F8, d: _F8, centres: _F8, radii: _F8, segs: _F8,
-                    m0: _F8) -> tuple | None:
-        """The solver's plan with its tail replaced by coasting (yaw damped) from stage
-        3N/4, N/2 or N/4, the first that is certified: (X, U, margins, term, True,
-        "<t> s", closest), or None.
-
-        SQP-RTI's answers that fail certification mostly fail at stage N only: one QP
-        step ends them faster than its own states say (the re-simulation closes the gaps
-        between its shooting nodes), and the braking distance d_f √V_N grows with the end
-        speed. Coasting earlier ends the plan slower and shorter; its first input is the
-        solver's, so the input applied is still the optimiser's closest to u_L, now
-        behind a certified plan."""
-        N = self.config.N
-        for k in (3 * N // 4, N // 2, N // 4):
-            if k < 1:
-                continue
-            Uc = U.copy()
-            Uc[k:] = 0.0
-            Xc, Uc = self._simulate(x, Candidate(Fallback.SOLVER_PLAN, "coasted", Uc, k), d)
-            margins, low, term, finite = self._cert.margins(Xc, centres, radii, segs)
-            cert, _, path_low = self._cert.judge(margins, low, term, finite, m0)
-            if cert:
-                return (Xc, Uc, margins, term, True, f"{k * self.config.dt_s:g} s",
-                        path_low)
-        return None
-
-    def _coast_end_speed(self, x: _F8, d: _F8) -> float:
-        """ν_Nᵀ P_f ν_N at the end of coasting from ``x`` (no thrust, no yaw moment),
-        with a 5 % margin: about the slowest the plan can end without astern thrust."""
-        N = self.config.N
-        X = self.rollout(x, np.zeros((N, 3)), d)
-        nu = X[-1, 3:]
-        return 1.05 * float(nu @ self._P_f @ nu)
 
     def _simulate(self, x: _F8, c: Candidate, d: _F8) -> tuple[_F8, _F8]:
         """States and inputs of a candidate, its yaw damping filled in (two passes)."""

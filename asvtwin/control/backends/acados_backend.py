@@ -124,7 +124,7 @@ class AcadosBackend:
         model.f_expl_expr = f(x, u, p[0:3])  # eq. (a), d̂ as parameter
         model.f_impl_expr = xdot - model.f_expl_expr
         model.con_h_expr = path_constraints(s)(x, p)  # eq. (e)
-        model.con_h_expr_e = terminal_constraints(s)(x, p)  # eq. (f), (g), end box
+        model.con_h_expr_e = terminal_constraints(s)(x, p)  # eq. (f), (g)
 
         ocp = AcadosOcp()
         ocp.model = model
@@ -152,7 +152,7 @@ class AcadosBackend:
             setattr(ocp.constraints, "lbx" + suffix, -nu_max)
             setattr(ocp.constraints, "ubx" + suffix, nu_max)
             setattr(ocp.constraints, "idxsbx" + suffix, np.arange(3))
-        nh, nh_e = s.n_h, s.n_h_e
+        nh, nh_e = s.n_h, s.n_h + 1
         ocp.constraints.lh = np.zeros(nh)
         ocp.constraints.uh = np.full(nh, _H_UPPER)
         ocp.constraints.idxsh = np.arange(nh)

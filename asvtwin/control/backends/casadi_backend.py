@@ -116,7 +116,7 @@ class CasadiBackend:
             Xs.append(Xk)
             self._ix.append(sl)
             if k >= 1:
-                ns = nh + 3 + (s.n_h_e - nh if k == N else 0)
+                ns = nh + 3 + (1 if k == N else 0)
                 Sk, sl = var(f"s{k}", ns, [0.0] * ns, [inf] * ns)
                 Ss.append(Sk)
                 self._is.append(sl)
@@ -137,8 +137,7 @@ class CasadiBackend:
             if k >= 1:
                 Sk = Ss[k - 1]
                 if k == N:
-                    # eq. (f), (g) and the end box; Sk[nh:nh+3] belongs to eq. (c)
-                    hk = HN(Xs[k], pk(k)) + ca.vertcat(Sk[0:nh], Sk[nh + 3:])
+                    hk = HN(Xs[k], pk(k)) + ca.vertcat(Sk[0:nh], Sk[-1])  # eq. (f), (g)
                 else:
                     hk = H(Xs[k], pk(k)) + Sk[0:nh]  # eq. (e)
                 g.append(hk)

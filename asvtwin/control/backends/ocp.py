@@ -10,8 +10,8 @@ The OCP of the paper's "Predictive Safety Filter" section,
     \\text{s.t.}\\; (a)\\; x_{k+1} = F(x_k, u_k, \\hat d), \\quad (b)\\; x_0 = x(t),
     \\quad (c)\\; |\\nu_k| \\le \\nu_{max} + s, \\quad (d)\\; u_{lb} \\le u_k \\le u_{ub},
 
-    (e)\\; d(p_k, O_{i,k}) \\ge d_{safe} - s, \\quad (f)\\; d(p_N, O_{i,N}) \\ge d_{safe} + c_N - s,
-    \\quad (g)\\; \\nu_N^\\top P_f \\nu_N \\le 1 + s, \\; |\\nu_N| \\le \\sqrt{\\hat V} a + s,
+    (e)\\; d(p_k, O_{i,k}) \\ge d_{safe} - s, \\quad (f)\\; d(p_N, O_{i,N}) \\ge d_{safe} + d_f - s,
+    \\quad (g)\\; \\nu_N^\\top P_f \\nu_N \\le 1 + s,
 
 is described here by stage functions a backend assembles: the discrete dynamics ``F``
 (classic RK4 of the vessel model, |·| smoothed as sqrt(z² + 1e-6): with the plain
@@ -21,17 +21,7 @@ inputs are hard.
 
 Stage parameters ``p_k`` (one vector per stage, ``(N+1, n_p)``) carry everything that
 changes between calls, so a solver is built once: ``[d̂ (3), clearance (1), circles
-(3 m: north, east, radius), segments (4 s: n0, e0, n1, e1), b (1)]``. At stage N the
-clearance is d_safe + c_N and the box |ν_N| ≤ b a bounds the end speed, ``a`` the
-half-widths of a box inside the terminal ellipsoid (:func:`terminal_box`): with
-b = √V̂ every velocity in it has ν_Nᵀ P_f ν_N ≤ V̂, and the filter sets c_N to the
-braking distance from there (d_f √V̂, the braking credit of
-:mod:`asvtwin.control.certification`), so a plan that meets both is one the
-certification accepts (:mod:`asvtwin.control.slots`). The bound is a box, not the
-ellipsoid scaled by V̂: the box is linear in the state, so SQP-RTI's one QP holds it,
-while a quadratic bound linearised at a slow warm start (gradient ≈ 0) let the answer
-end at 50 times V̂. With b large (:data:`BOX_OFF`) and c_N = d_f this is eq. (f)/(g)
-as published. Unused obstacle slots
+(3 m: north, east, radius), segments (4 s: n0, e0, n1, e1)]``. Unused obstacle slots
 hold far-away dummies (:func:`dummy_parameters`), never ±inf or 1e9 (an acados pitfall).
 """
 
@@ -39,7 +29,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -51,7 +40,6 @@ from numpy.typing import NDArray
 from asvtwin.vessel.params import VesselParams
 
 __all__ = [
-    "BOX_OFF",
     "DUMMY_DISTANCE_FACTOR",
     "SMOOTH_ABS_EPS",
     "OcpSpec",
@@ -59,7 +47,6 @@ __all__ = [
     "continuous_dynamics",
     "discrete_dynamics",
     "path_constraints",
-    "terminal_box",
     "terminal_constraints",
 ]
 
@@ -67,11 +54,6 @@ __all__ = [
 SMOOTH_ABS_EPS = 1e-6
 #: Unused obstacle slots sit this many ship lengths away from the own ship.
 DUMMY_DISTANCE_FACTOR = 200.0
-#: Box scale b that leaves the terminal speed box inactive (eq. (g) as published).
-BOX_OFF = 100.0
-#: How the terminal box shares the ellipsoid among surge, sway and yaw: a ship ending a
-#: plan coasts ahead with little sway and yaw, so surge gets most of it.
-BOX_SHARES = (0.9, 0.05, 0.05)
 
 
 @dataclass(frozen=True)
@@ -102,10 +84,6 @@ class OcpSpec:
         Terminal ellipsoid matrix (row-major 3x3).
     rk4_substeps : int
         RK4 steps per stage.
-    p_layout : int
-        Version of the stage-parameter layout and terminal constraints (3: the box
-        scale b is the last parameter, the box its last 6 terminal constraints); part
-        of the cache key, so a solver generated for an older layout is not loaded.
     """
 
     params: tuple[tuple[str, float], ...]
@@ -122,22 +100,16 @@ class OcpSpec:
     slack_l2: float
     P_f: tuple[float, ...]
     rk4_substeps: int = 1
-    p_layout: int = 3
 
     @property
     def n_p(self) -> int:
         """Length of one stage's parameter vector."""
-        return 5 + 3 * self.n_circles + 4 * self.n_segments
+        return 4 + 3 * self.n_circles + 4 * self.n_segments
 
     @property
     def n_h(self) -> int:
         """Number of soft path constraints per stage (obstacles only)."""
         return self.n_circles + self.n_segments
-
-    @property
-    def n_h_e(self) -> int:
-        """Number of soft terminal constraints: obstacles, the ellipsoid, the box (6)."""
-        return self.n_h + 7
 
     @property
     def vessel(self) -> VesselParams:
@@ -249,29 +221,13 @@ def path_constraints(spec: OcpSpec) -> ca.Function:
     return ca.Function("h_path", [x, pk], [h], ["x", "p"], ["h"])
 
 
-def terminal_box(P_f: NDArray[np.float64],
-                 shares: tuple[float, float, float] = BOX_SHARES) -> NDArray[np.float64]:
-    """Half-widths ``a`` (3,) of the box |ν| ≤ a inside the ellipsoid νᵀ P_f ν ≤ 1 whose
-    corners touch it, its sides in proportion √(share_i / P_ii): the largest of the
-    corners' νᵀ P_f ν (the maximum over the box, a convex function's over a polytope)
-    is 1, so |ν| ≤ √V̂ a implies νᵀ P_f ν ≤ V̂."""
-    P = np.asarray(P_f, dtype=float)
-    a = np.sqrt(np.asarray(shares, dtype=float) / np.diag(P))
-    corners = np.array([[1.0, s1, s2] for s1 in (1.0, -1.0) for s2 in (1.0, -1.0)]) * a
-    worst = float(np.max(np.einsum("ki,ij,kj->k", corners, P, corners)))
-    return a / math.sqrt(worst)
-
-
 def terminal_constraints(spec: OcpSpec) -> ca.Function:
-    """``h_N(x, p) >= 0`` (soft): margins with stage N's clearance d_safe + c_N, eq. (f),
-    the terminal ellipsoid 1 − ν_Nᵀ P_f ν_N, eq. (g), and the end-speed box
-    b a ∓ ν_N ≥ 0 (:func:`terminal_box`, b the last parameter)."""
+    """``h_N(x, p) >= 0`` (soft): margins with clearance d_safe + d_f, eq. (f), and the
+    terminal ellipsoid 1 − ν_Nᵀ P_f ν_N, eq. (g)."""
     x = ca.SX.sym("x", 6)
     pk = ca.SX.sym("p", spec.n_p)
     h = _obstacle_margins(x, pk, spec.n_circles, spec.n_segments)
     nu = x[3:6]
     # eq. (OCP)(g): terminal ellipsoid ν_Nᵀ P_f ν_N ≤ 1
     g = 1.0 - ca.mtimes([nu.T, ca.DM(spec.P_f_matrix), nu])
-    half = pk[spec.n_p - 1] * ca.DM(terminal_box(spec.P_f_matrix))
-    return ca.Function("h_term", [x, pk], [ca.vertcat(h, g, half - nu, half + nu)],
-                       ["x", "p"], ["h"])
+    return ca.Function("h_term", [x, pk], [ca.vertcat(h, g)], ["x", "p"], ["h"])
