@@ -54,7 +54,8 @@ _NEAR_HIDE = float(np.sin(np.deg2rad(20.0)))
 
 
 @njit(cache=True)
-def _box_area(pts, s, n, c, sn):  # type: ignore[no-untyped-def]
+def _extents(pts, s, n, c, sn):  # type: ignore[no-untyped-def]
+    """Extents (s0, s1, t0, t1) of returns s..s+n-1 along (c, sn) and across it."""
     s0 = s1 = t0 = t1 = 0.0
     for j in range(n):
         a = pts[s + j, 0] * c + pts[s + j, 1] * sn
@@ -64,6 +65,12 @@ def _box_area(pts, s, n, c, sn):  # type: ignore[no-untyped-def]
             t0 = t1 = b
         else:
             s0, s1, t0, t1 = min(s0, a), max(s1, a), min(t0, b), max(t1, b)
+    return s0, s1, t0, t1
+
+
+@njit(cache=True)
+def _box_area(pts, s, n, c, sn):  # type: ignore[no-untyped-def]
+    s0, s1, t0, t1 = _extents(pts, s, n, c, sn)
     return (s1 - s0) * (t1 - t0) + 1e-6 * ((s1 - s0) + (t1 - t0))
 
 
@@ -137,15 +144,7 @@ def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, pr
     th = heading_i if known else _box_orientation(points, s, n)
     ch, sh = np.cos(th), np.sin(th)
     # visible extents in the hull frame (h = (ch, sh), n = (-sh, ch))
-    s0 = s1 = t0 = t1 = 0.0
-    for j in range(n):
-        a = points[s + j, 0] * ch + points[s + j, 1] * sh
-        b = -points[s + j, 0] * sh + points[s + j, 1] * ch
-        if j == 0:
-            s0 = s1 = a
-            t0 = t1 = b
-        else:
-            s0, s1, t0, t1 = min(s0, a), max(s1, a), min(t0, b), max(t1, b)
+    s0, s1, t0, t1 = _extents(points, s, n, ch, sh)
     es, et = s1 - s0, t1 - t0
     if not known and es < et:  # unknown heading: call the longer visible side the axis
         th += 0.5 * np.pi
