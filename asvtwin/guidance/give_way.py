@@ -186,7 +186,7 @@ class GiveWay:
         if not self._active:
             self.status = GiveWayStatus()
             return 0.0
-        sel = np.array([int(i) in self._active for i in ids_a])
+        sel = np.isin(ids_a, np.fromiter(self._active, dtype=np.int64, count=len(self._active)))
         p_rel, v_t, sel_ids = p[sel] - x[:2], v[sel], ids_a[sel]
         # 2. who leaves: the LOS course alone passes it with a margin
         cpa0, tcpa0 = self._cpa(p_rel, v_t, speed, np.array([los_course_rad]))
