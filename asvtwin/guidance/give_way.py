@@ -26,6 +26,19 @@ to the LOS course χ_LOS:
 - when no offset up to ``max_offset_rad`` clears every target, the one that maximises
   the smallest CPA is held (the safety filter, when present, has the last word).
 
+The stand-on vessel keeps its course and speed (rule 17(a)(i)), but "may take action to
+avoid collision by her manoeuvre alone, as soon as it becomes apparent to her that the
+vessel required to keep out of the way is not taking appropriate action" (17(a)(ii)), and
+shall when collision can no longer be avoided by the give-way vessel alone (17(b)); in a
+crossing situation she shall not alter to port for a vessel on her own port side (17(c)).
+With ``stand_on_tcpa_s`` set, a vessel the classifier names ``crossing_stand_on`` with a
+risk of collision is *watched*: its course over ground when the risk was first seen is
+kept; if, with TCPA at or below ``stand_on_tcpa_s``, the CPA is still below the pass
+distance and its course has changed by less than ``altered_rad`` (it has not altered), it
+enters the set as ``stand_on_act`` and the own ship alters to starboard only, by the same
+smallest-alteration rule, until the LOS course passes it again. A give-way vessel that
+does alter (by ``altered_rad`` or more) is left to it (and to the safety filter).
+
 The targets are what the own ship knows (tracked positions and velocities), never ground
 truth. CPA/TCPA as an ARPA computes them (constant velocities, IMO MSC.192(79)).
 """
@@ -57,7 +70,7 @@ class GiveWayStatus:
         Ids of the targets the own ship is keeping out of the way of.
     kinds : tuple of str
         Their encounter kinds when they entered (``head_on``, ``crossing_give_way``,
-        ``overtaking``).
+        ``overtaking``, or ``stand_on_act``: a give-way vessel that did not give way).
     min_cpa_m : float
         Smallest CPA to them on the commanded course [m] (inf without targets).
     """
@@ -88,6 +101,13 @@ class GiveWay:
     release_factor : float
         A target leaves the set when the LOS course passes it at this many pass
         distances (hysteresis, >= 1).
+    stand_on_tcpa_s : float or None
+        As the stand-on vessel of a crossing, act (rule 17(a)(ii), to starboard) once the
+        TCPA is at or below this [s] while the give-way vessel has not altered and the CPA
+        is below the pass distance. None: always stand on (rule 17(a)(i) only).
+    altered_rad : float
+        A give-way vessel whose course over ground changed by this much [rad] since the
+        risk was first seen is taking action (no stand-on action for it).
     """
 
     pass_distance_m: float
@@ -96,34 +116,43 @@ class GiveWay:
     max_offset_rad: float = math.radians(90.0)
     step_rad: float = math.radians(5.0)
     release_factor: float = 1.2
+    stand_on_tcpa_s: float | None = None
+    altered_rad: float = math.radians(10.0)
     _active: dict[int, str] = field(default_factory=dict, init=False, repr=False)
+    _watch: dict[int, float] = field(default_factory=dict, init=False, repr=False)
     status: GiveWayStatus = field(default_factory=GiveWayStatus, init=False)
 
     def __post_init__(self) -> None:
         for name in ("pass_distance_m", "tcpa_limit_s", "min_speed_m_s", "max_offset_rad",
-                     "step_rad"):
+                     "step_rad", "altered_rad"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
                 raise ParameterError(f"GiveWay.{name} must be finite and > 0, actually: {v!r}")
         if not (math.isfinite(self.release_factor) and self.release_factor >= 1.0):
             raise ParameterError(f"GiveWay.release_factor must be finite and >= 1, actually: "
                                  f"{self.release_factor!r}")
+        v = self.stand_on_tcpa_s
+        if v is not None and not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+            raise ParameterError(f"GiveWay.stand_on_tcpa_s must be finite and > 0 or None, "
+                                 f"actually: {v!r}")
 
     @classmethod
     def for_length(cls, length_m: float) -> GiveWay:
         """Settings for a hull of ``length_m`` [m]: pass at 6 ship lengths (527 m for the
         88 m supply vessel, the clearance the safety filter's track circles reach about
-        three minutes ahead), look 10 minutes ahead at 88 m, Froude-scaled (times × √λ,
-        λ = L / 88 m)."""
+        three minutes ahead), look 10 minutes ahead at 88 m, and as the stand-on vessel act
+        at 5 minutes to the CPA (rule 17(a)(ii)) when the give-way vessel has not altered
+        by 10°; times Froude-scaled (× √λ, λ = L / 88 m)."""
         if not (math.isfinite(length_m) and length_m > 0):
             raise ParameterError(f"length_m must be finite and > 0, actually: {length_m!r}")
         sq = math.sqrt(length_m / 88.0)
         return cls(pass_distance_m=6.0 * length_m, tcpa_limit_s=600.0 * sq,
-                   min_speed_m_s=0.25 * sq)
+                   min_speed_m_s=0.25 * sq, stand_on_tcpa_s=300.0 * sq)
 
     def reset(self) -> None:
         """Forget every target (no manoeuvre in progress)."""
         self._active.clear()
+        self._watch.clear()
         self.status = GiveWayStatus()
 
     def _cpa(self, p_rel: np.ndarray, v_t: np.ndarray, speed: float, chi: np.ndarray
@@ -138,6 +167,17 @@ class GiveWay:
         p = np.broadcast_to(p_rel[None], (m, n, 2))
         cpa, tcpa = cpa_tcpa(p.reshape(-1, 2), w.reshape(-1, 2))
         return cpa.reshape(m, n), tcpa.reshape(m, n)
+
+    def _stand_on(self, tid: int, v: np.ndarray, tcpa_s: float) -> None:
+        """Rule 17(a)(ii) for a give-way vessel ``tid`` at risk (CPA below the pass
+        distance at TCPA ``tcpa_s``) with velocity ``v``: watch its course; act (enter
+        the set) once TCPA <= ``stand_on_tcpa_s`` and it has not altered."""
+        course = math.atan2(float(v[1]), float(v[0]))
+        c0 = self._watch.setdefault(tid, course)
+        assert self.stand_on_tcpa_s is not None
+        turned = abs(math.remainder(course - c0, 2.0 * math.pi))
+        if tcpa_s <= self.stand_on_tcpa_s and turned < self.altered_rad:
+            self._active[tid] = "stand_on_act"
 
     def offset(self, own_state: ArrayLike, los_course_rad: float, speed_m_s: float,
                ids: ArrayLike, positions: ArrayLike, velocities: ArrayLike) -> float:
@@ -177,12 +217,22 @@ class GiveWay:
                     cpa_limit_m=self.pass_distance_m, tcpa_limit_s=self.tcpa_limit_s,
                     min_speed_m_s=self.min_speed_m_s))
                 for i, k in zip(r, enc.kind, strict=True):
-                    if k in _GIVE_WAY_KINDS and int(ids_a[i]) not in self._active:
-                        self._active[int(ids_a[i])] = k
-        # a target no longer tracked is forgotten
+                    tid = int(ids_a[i])
+                    if tid in self._active:
+                        continue
+                    if k in _GIVE_WAY_KINDS:
+                        self._active[tid] = k
+                    elif k == "crossing_stand_on" and self.stand_on_tcpa_s is not None:
+                        self._stand_on(tid, v[i], float(tcpa_now[i]))
+            at_risk = {int(t) for t in ids_a[risk]}
+        else:
+            at_risk = set()
+        # a target no longer tracked is forgotten; a watched one no longer at risk too
         known = {int(i) for i in ids_a}
         for tid in [t for t in self._active if t not in known]:
             del self._active[tid]
+        for tid in [t for t in self._watch if t not in at_risk or t in self._active]:
+            del self._watch[tid]
         if not self._active:
             self.status = GiveWayStatus()
             return 0.0

@@ -16,12 +16,15 @@ __all__ = ["autopilot_kernel", "los_kernel"]
 
 
 @njit(cache=True)
-def los_kernel(p, w, origin, k, lookahead, R, chi, cte):  # pragma: no cover - numba
+def los_kernel(p, w, origin, k, lookahead, R, chi, cte, cot_max=0.0,
+               switch_cte=math.inf):  # pragma: no cover - numba
     """Switch legs and steer each craft; updates ``k`` in place, fills ``chi`` and ``cte``.
 
     p (n, 2) positions; w (kw, 2) waypoints; origin (n, 2) leg start for waypoint 0;
-    k (n,) index of the waypoint steered to; lookahead Δ and radius R [m]. Returns False
-    (and changes nothing) if a position is NaN or infinite.
+    k (n,) index of the waypoint steered to; lookahead Δ and radius R [m]; ``cot_max``
+    = 1 / tan(χ_max) bounds the intercept angle (Δ(e) = max(Δ, |e| cot χ_max); 0: constant
+    Δ); the along-track switch only while |e| < ``switch_cte`` [m] (inf: always). Returns
+    False (and changes nothing) if a position is NaN or infinite.
     """
     n = p.shape[0]
     kw = w.shape[0]
@@ -30,7 +33,8 @@ def los_kernel(p, w, origin, k, lookahead, R, chi, cte):  # pragma: no cover - n
             return False
     for i in range(n):
         px, py = p[i, 0], p[i, 1]
-        # switch while inside the acceptance circle or past (leg - R) along track
+        # switch while inside the acceptance circle, or past (leg - R) along track while
+        # near the leg (|e| < switch_cte)
         while k[i] < kw:
             kk = k[i]
             if kk == 0:
@@ -40,8 +44,9 @@ def los_kernel(p, w, origin, k, lookahead, R, chi, cte):  # pragma: no cover - n
             dx, dy = w[kk, 0] - ax, w[kk, 1] - ay
             pi_p = math.atan2(dy, dx)
             along = (px - ax) * math.cos(pi_p) + (py - ay) * math.sin(pi_p)
+            e_k = -(px - ax) * math.sin(pi_p) + (py - ay) * math.cos(pi_p)
             dist = math.hypot(w[kk, 0] - px, w[kk, 1] - py)
-            if dist <= R or along >= math.hypot(dx, dy) - R:
+            if dist <= R or (along >= math.hypot(dx, dy) - R and abs(e_k) < switch_cte):
                 k[i] += 1
             else:
                 break
@@ -57,7 +62,8 @@ def los_kernel(p, w, origin, k, lookahead, R, chi, cte):  # pragma: no cover - n
         if k[i] >= kw:
             chi[i] = pi_p  # done: hold the last leg's course
         else:
-            c = pi_p + math.atan(-e / lookahead)  # χ_d = π_p + arctan(-e/Δ)
+            delta = max(lookahead, abs(e) * cot_max)  # Δ(e): intercept angle <= χ_max
+            c = pi_p + math.atan(-e / delta)  # χ_d = π_p + arctan(-e/Δ)
             chi[i] = math.atan2(math.sin(c), math.cos(c))
     return True
 
@@ -111,7 +117,7 @@ def warm_up() -> None:
     """Compile (or load) both kernels."""
     z = np.zeros((1, 2))
     los_kernel(z, np.ones((1, 2)), z, np.zeros(1, dtype=np.int64), 1.0, 0.5, np.zeros(1),
-               np.zeros(1))
+               np.zeros(1), 0.0, math.inf)
     autopilot_kernel(np.zeros((1, 6)), np.zeros(1), np.zeros(1), np.ones((1, 8)), True,
                      np.zeros((1, 3)), np.zeros(1), -np.ones((1, 3)), np.ones((1, 3)),
                      np.zeros(1), np.zeros(1), 0.0, np.zeros((1, 3)))

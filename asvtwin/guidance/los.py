@@ -24,11 +24,31 @@ cross-track dynamics :math:`\\dot e = U \\sin(\\chi - \\pi_p)` is uniformly glob
 asymptotically stable for :math:`U > 0`). Small :math:`\\Delta` steers aggressively, large
 :math:`\\Delta` gently.
 
+Bounded intercept angle (optional, ``max_intercept_rad`` = :math:`\\chi_{max}`): the
+lookahead grows with the cross-track error, a time-varying lookahead in Fossen's sense
+(Fossen 2021, 2nd ed., ch. 12; Lekkas and Fossen 2012 vary it the other way, to converge
+faster),
+
+.. math::
+
+    \\Delta(e) = \\max(\\Delta,\\; |e| / \\tan\\chi_{max})
+    \\quad\\Rightarrow\\quad |\\chi_r(e)| \\le \\chi_{max},
+
+so a craft far off its path returns at no more than :math:`\\chi_{max}` to it (and makes
+headway along it) instead of nearly square to it; near the path (:math:`|e| \\le \\Delta
+\\tan\\chi_{max}`) the law is the constant-lookahead one. :math:`\\chi_r` keeps the sign of
+:math:`-e`, so :math:`\\dot e = U \\sin\\chi_r` still drives :math:`e \\to 0`.
+
 Waypoint switching: the craft moves on to the next leg when it enters the circle of
 acceptance of radius :math:`R` around :math:`p_{k+1}`,
 :math:`(x_{k+1} - x)^2 + (y_{k+1} - y)^2 \\le R^2`, or (Fossen's alternative, which also
 catches a craft that misses the circle) when its along-track distance passes
-:math:`\\lVert p_{k+1} - p_k \\rVert - R`. After the last waypoint the output is ``done``.
+:math:`\\lVert p_{k+1} - p_k \\rVert - R`. Fossen's alternative ignores the cross-track
+error: a craft pushed far off the leg (by an avoidance manoeuvre) would skip it while
+still far from it. With ``switch_cte_m`` the along-track test only counts while
+:math:`|e| <` ``switch_cte_m``; farther off, the craft keeps steering to the leg (extended
+beyond its end when it is past it) and switches once it is back near it or inside the
+circle. After the last waypoint the output is ``done``.
 
 Everything is batched: ``n`` craft on the same route each keep their own leg index.
 :func:`los_steer` is the pure, stateless form for craft on different legs (the synthetic
@@ -53,7 +73,8 @@ _I8 = NDArray[np.int64]
 
 
 def los_steer(
-    position: ArrayLike, wp_from: ArrayLike, wp_to: ArrayLike, lookahead_m: ArrayLike
+    position: ArrayLike, wp_from: ArrayLike, wp_to: ArrayLike, lookahead_m: ArrayLike,
+    max_intercept_rad: float | None = None,
 ) -> tuple[_F8, _F8, _F8, _F8]:
     """Lookahead-based LOS course for craft on given legs (pure, batched).
 
@@ -65,11 +86,14 @@ def los_steer(
         Start and end of each craft's leg [m], NED (broadcast against ``position``).
     lookahead_m : array_like, shape (n,) or scalar
         Lookahead distance Δ [m], > 0.
+    max_intercept_rad : float, optional
+        Bound χ_max on the intercept angle, in (0, π/2): Δ(e) = max(Δ, |e| / tan χ_max).
+        None: constant Δ.
 
     Returns
     -------
     course_rad : ndarray (n,)
-        Desired course χ_d = π_p + arctan(−e/Δ) [rad], in (−π, π].
+        Desired course χ_d = π_p + arctan(−e/Δ(e)) [rad], in (−π, π].
     cte_m : ndarray (n,)
         Cross-track error e [m], positive to starboard of the path.
     along_m : ndarray (n,)
@@ -86,9 +110,22 @@ def los_steer(
     c, s = np.cos(pi_p), np.sin(pi_p)
     along = rel[:, 0] * c + rel[:, 1] * s  # s = (x - x_k) cos π_p + (y - y_k) sin π_p
     cte = -rel[:, 0] * s + rel[:, 1] * c  # e = -(x - x_k) sin π_p + (y - y_k) cos π_p
-    chi_d = pi_p + np.arctan(-cte / np.asarray(lookahead_m, dtype=np.float64))  # χ_d = π_p + χ_r
+    delta = np.maximum(np.asarray(lookahead_m, dtype=np.float64),
+                       np.abs(cte) * _cot_max(max_intercept_rad))  # Δ(e)
+    chi_d = pi_p + np.arctan(-cte / delta)  # χ_d = π_p + χ_r
     chi_d = np.angle(np.exp(1j * chi_d))  # wrap to (-π, π]
     return chi_d, cte, along, np.hypot(d[:, 0], d[:, 1])
+
+
+def _cot_max(max_intercept_rad: float | None) -> float:
+    """1 / tan χ_max (0 for no bound), checking χ_max in (0, π/2)."""
+    if max_intercept_rad is None:
+        return 0.0
+    v = max_intercept_rad
+    if not (isinstance(v, int | float) and 0.0 < v < math.pi / 2):
+        raise ParameterError(f"max_intercept_rad must be in (0, pi/2) [rad] or None, "
+                             f"actually: {v!r}")
+    return 1.0 / math.tan(v)
 
 
 @dataclass(frozen=True)
@@ -123,6 +160,14 @@ class LosGuidance:
         Lookahead distance Δ [m], > 0 (Fossen suggests 1.5-2.5 ship lengths).
     acceptance_radius_m : float
         Radius R of the circle of acceptance [m], > 0 (about 2 ship lengths).
+    max_intercept_rad : float, optional
+        Bound χ_max on the angle at which a craft off its leg steers back to it, in
+        (0, π/2): the lookahead grows to |e| / tan χ_max (see the module docstring).
+        None (default): constant lookahead.
+    switch_cte_m : float, optional
+        The along-track switching test only counts while the cross-track error is below
+        this [m] (> 0); e.g. ``acceptance_radius_m``. None (default): Fossen's alternative
+        as is, at any cross-track error.
 
     Examples
     --------
@@ -136,7 +181,8 @@ class LosGuidance:
     """
 
     def __init__(self, waypoints: ArrayLike, *, lookahead_m: float,
-                 acceptance_radius_m: float) -> None:
+                 acceptance_radius_m: float, max_intercept_rad: float | None = None,
+                 switch_cte_m: float | None = None) -> None:
         w = np.asarray(waypoints, dtype=np.float64)
         if w.ndim != 2 or w.shape[1] != 2 or w.shape[0] < 1 or not np.isfinite(w).all():
             raise ParameterError(
@@ -144,9 +190,13 @@ class LosGuidance:
                 f"{w.shape}"
             )
         for name, v in (("lookahead_m", lookahead_m), ("acceptance_radius_m",
-                                                       acceptance_radius_m)):
+                                                       acceptance_radius_m),
+                        ("switch_cte_m", 1.0 if switch_cte_m is None else switch_cte_m)):
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
                 raise ParameterError(f"{name} must be finite and > 0 [m], actually: {v!r}")
+        self._cot_max = _cot_max(max_intercept_rad)
+        self.max_intercept_rad = max_intercept_rad
+        self.switch_cte_m = switch_cte_m
         self.waypoints = w.copy()
         self.waypoints.flags.writeable = False
         self.lookahead_m = float(lookahead_m)
@@ -199,7 +249,8 @@ class LosGuidance:
         chi = np.empty(n)
         cte = np.empty(n)
         if not los_kernel(p, w, self._origin, self._k, self.lookahead_m,
-                          self.acceptance_radius_m, chi, cte):
+                          self.acceptance_radius_m, chi, cte, self._cot_max,
+                          math.inf if self.switch_cte_m is None else self.switch_cte_m):
             raise StateError(f"position must be finite [m], actually: {p_in!r}")
         k = self._k
         done = k >= k_wp

@@ -11,8 +11,10 @@ built by a factory ``(params, own_ship_spec) -> controller`` registered in
   starts with the thrust that holds the start speed straight ahead;
 - ``los`` / ``los_psf`` — line-of-sight path following along the route (Fossen 2021,
   *Handbook of Marine Craft Hydrodynamics and Motion Control*, 2nd ed., ch. 12) with the
-  heading/speed autopilot of :mod:`asvtwin.guidance`; ``los_psf`` runs through the
-  safety filter;
+  heading/speed autopilot of :mod:`asvtwin.guidance`; the return to the route is at
+  most :data:`MAX_INTERCEPT_RAD` (45°) off the leg, and a leg is left by the along-track
+  test only within the circle of acceptance's radius of it (:class:`RouteMonitor`);
+  ``los_psf`` runs through the safety filter;
 - ``rl`` / ``rl_psf`` — the trained policy, ``asvtwin.rl.controller.RlController``,
   imported when asked for (a clear error until it is installed).
 
@@ -38,8 +40,14 @@ from asvtwin.sensors import LidarScan
 from asvtwin.units import KNOT_M_S
 from asvtwin.vessel import VesselParams
 
-__all__ = ["CONTROLLERS", "Controller", "GuidanceStatus", "LosController", "ManualController",
-           "RouteMonitor", "make_controller", "uses_filter"]
+__all__ = ["CONTROLLERS", "MAX_INTERCEPT_RAD", "Controller", "GuidanceStatus", "LosController",
+           "ManualController", "RouteMonitor", "make_controller", "uses_filter"]
+
+#: The own ship returns to its route at no more than this angle to the leg (the LOS
+#: lookahead grows with the cross-track error, :class:`asvtwin.guidance.LosGuidance`): after
+#: a give-way detour it crosses other vessels' wakes instead of following them
+#: (``multi_vessel``) and makes headway along the route while it returns.
+MAX_INTERCEPT_RAD = math.radians(45.0)
 
 
 
@@ -69,6 +77,10 @@ class RouteMonitor:
 
     The runtime scores every controller with it, so a controller that does not follow the
     route by LOS (the RL policy, manual thrust) still reports its real cross-track error.
+    A leg is left when the ship is inside the circle of acceptance or past (leg − R) along
+    track *while within R of the leg*: a ship pushed far off a leg (by giving way, or by
+    the safety filter) comes back to it rather than skipping it. The LOS course returns
+    at most :data:`MAX_INTERCEPT_RAD` off the leg.
     """
 
     def __init__(self, lookahead_m: float, acceptance_radius_m: float) -> None:
@@ -89,7 +101,9 @@ class RouteMonitor:
                 not np.array_equal(self._route, route):
             self._route = route.copy()
             self._los = LosGuidance(route, lookahead_m=self.lookahead_m,
-                                    acceptance_radius_m=self.acceptance_radius_m)
+                                    acceptance_radius_m=self.acceptance_radius_m,
+                                    max_intercept_rad=MAX_INTERCEPT_RAD,
+                                    switch_cte_m=self.acceptance_radius_m)
         out = self._los.step(position_ne)
         self.status = GuidanceStatus(int(np.asarray(out.waypoint_index).reshape(-1)[0]),
                                      float(np.asarray(out.cte_m).reshape(-1)[0]),
@@ -126,7 +140,8 @@ class LosController:
     The runtime shows it the tracked traffic before each call (:meth:`see_traffic`: the
     tracker's confirmed tracks, never ground truth); :class:`~asvtwin.guidance.GiveWay`
     turns the LOS course to starboard for a vessel the own ship must keep out of the way
-    of (rules 13-15) and lets LOS bring it back to the route once that vessel is passed.
+    of (rules 13-15), and for a give-way vessel that does not give way (rule 17(a)(ii)),
+    and lets LOS bring it back to the route once that vessel is passed.
     """
 
     def __init__(self, params: VesselParams, spec: OwnShipSpec) -> None:

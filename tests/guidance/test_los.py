@@ -199,3 +199,92 @@ def test_numba_guidance_equals_the_numpy_steering_law(rng):
     chi_r = (np.asarray(out.course_rad) - pi_p + np.pi) % (2 * np.pi) - np.pi
     assert (np.abs(chi_r) < np.pi / 2).all()
     assert (np.sign(chi_r) == -np.sign(e)).all()
+
+
+def test_bounded_intercept_angle_caps_the_return_and_keeps_the_law_near_the_path(rng):
+    """Δ(e) = max(Δ, |e| / tan χ_max): far off the leg the course is exactly χ_max off the
+    path towards it; within Δ tan χ_max the constant-lookahead law is unchanged; the
+    numba guidance and the numpy law agree."""
+    a, b = np.array([0.0, 0.0]), np.array([3000.0, 3000.0])
+    pi_p = math.pi / 4
+    chi_max = math.radians(45.0)
+    pts = a + rng.uniform([-500, -1500], [2000, 1500], (400, 2))
+    los = LosGuidance([a, b], lookahead_m=200.0, acceptance_radius_m=50.0,
+                      max_intercept_rad=chi_max)
+    out = los.step(pts)
+    chi, e, _, _ = los_steer(pts, a, b, 200.0, chi_max)
+    np.testing.assert_allclose(np.cos(np.asarray(out.course_rad) - chi), 1.0, atol=1e-12)
+    chi_r = (np.asarray(out.course_rad) - pi_p + np.pi) % (2 * np.pi) - np.pi
+    assert (np.abs(chi_r) <= chi_max + 1e-12).all()
+    assert (np.sign(chi_r) == -np.sign(e)).all()
+    far = np.abs(e) > 200.0  # Δ tan 45° = 200 m
+    assert far.sum() > 100
+    np.testing.assert_allclose(np.abs(chi_r[far]), chi_max, atol=1e-12)
+    classic, _, _, _ = los_steer(pts[~far], a, b, 200.0)
+    np.testing.assert_allclose(np.cos(np.asarray(out.course_rad)[~far] - classic), 1.0,
+                               atol=1e-12)
+    with pytest.raises(ParameterError, match="max_intercept_rad"):
+        LosGuidance([a, b], lookahead_m=1.0, acceptance_radius_m=1.0,
+                    max_intercept_rad=math.pi / 2)
+    with pytest.raises(ParameterError, match="max_intercept_rad"):
+        los_steer(pts, a, b, 200.0, -0.1)
+
+
+@pytest.mark.parametrize("params", [cybership2(), cybership2_full_scale()],
+                         ids=["model", "full"])
+def test_bounded_intercept_returns_from_far_off_at_45_degrees_on_the_vessel_model(params):
+    """On the vessel model, 12 lengths off a straight path (a give-way detour): with
+    χ_max = 45° the course over ground never leaves the path by more than 45° plus the
+    overshoot of the first turn (the hull is course-unstable: 5.7° measured) and the ship
+    gets back on the path without crossing it; the classic law (Δ = 2.5 L) asks for 78°
+    and makes 82°."""
+    L = params.length
+    f = math.sqrt(L / 1.255)
+    U = 0.25 * f
+    route = np.array([[0.0, 0.0], [400.0 * L, 0.0]])
+    dt = 0.1 * f
+
+    def run(chi_max):
+        los = LosGuidance(route, lookahead_m=2.5 * L, acceptance_radius_m=2.0 * L,
+                          max_intercept_rad=chi_max)
+        ap = HeadingSpeedAutopilot(params)
+        sim = BatchSimulator([params], np.array([[0.0, 12.0 * L, 0.0, U, 0.0, 0.0]]), dt_s=dt)
+        x, cogs, ctes = sim.state[0], [], []
+        for _ in range(round(250.0 * f / dt)):
+            o = los.step(x[:2])
+            x = sim.step(ap.tau(x, o.course_rad, U)[None])[0]
+            c, s = math.cos(x[2]), math.sin(x[2])  # course over ground from body velocity
+            cogs.append(math.atan2(s * x[3] + c * x[4], c * x[3] - s * x[4]))
+            ctes.append(o.cte_m / L)
+        return np.degrees(np.array(cogs)), np.array(ctes)
+
+    cog45, cte45 = run(math.radians(45.0))
+    cog0, _ = run(None)
+    assert cog0.min() < -75.0  # the classic law returns nearly square to the path
+    assert -52.0 < cog45.min() < -44.0  # the bounded one at 45° (+ the turn's overshoot)
+    assert abs(cte45[-1]) < 0.05 and cte45.min() > -0.1  # back on the path, no overshoot
+
+
+def test_along_track_switching_waits_for_the_craft_to_be_near_the_leg():
+    """Fossen's along-track switch ignores the cross-track error: a craft 800 m off a leg,
+    past its end along track, skips it. With switch_cte_m = R it keeps the leg, steers
+    back to it (extended past its end) and switches once within R of it; the circle of
+    acceptance still switches anywhere."""
+    route = [[0.0, 0.0], [1000.0, 0.0], [1000.0, 1000.0]]
+    R = 50.0
+    far = np.array([980.0, -800.0])  # along 980 > 1000 - R, |e| = 800 m
+
+    def make(**kw):
+        return LosGuidance(route, lookahead_m=100.0, acceptance_radius_m=R, **kw)
+
+    assert make().step(far).waypoint_index == 2  # the classic rule skips the leg
+    los = make(switch_cte_m=R)
+    out = los.step(far)
+    assert out.waypoint_index == 1 and out.cte_m == pytest.approx(-800.0)
+    assert math.cos(out.course_rad) > 0.1 and math.sin(out.course_rad) > 0.9  # back east
+    assert los.step([1020.0, -60.0]).waypoint_index == 1  # still 60 m > R off
+    assert los.step([1030.0, -40.0]).waypoint_index == 2  # near the leg, past its end
+    circle = make(switch_cte_m=1e-3)
+    assert circle.step([1000.0, 30.0]).waypoint_index == 2  # inside the circle of acceptance
+    with pytest.raises(ParameterError, match="switch_cte_m"):
+        make(switch_cte_m=0.0)
