@@ -24,12 +24,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from asvtwin.checks import check_positive
 from asvtwin.environment.forces import (
+    RHO_AIR,
     WindCoefficients,
-    current_force,
-    wave_drift_force,
-    wind_force,
+    _environment_force_batch,
+    _packed,
+    environment_rows,
 )
-from asvtwin.errors import ConfigError
+from asvtwin.errors import ConfigError, StateError
 from asvtwin.vessel.params import RHO_SEA, VesselParams
 
 __all__ = [
@@ -203,6 +204,11 @@ class Environment:
                                                      math.sin(c.direction_rad)])
         self._wind_mean = wind_vector(config.wind.speed_m_s, config.wind.from_direction_rad)
         self._coeff = WindCoefficients(config.wind.c_x, config.wind.c_y, config.wind.c_n)
+        # per hull (by identity, parameter sets are immutable): the compiled force's rows
+        self._rows: dict[int, tuple[VesselParams, NDArray[np.float64], NDArray[np.float64],
+                                    NDArray[np.float64]]] = {}
+        # per step length: each process's (e^{-Δt/T}, σ √(1 − e^{-2Δt/T}), draws)
+        self._steps: dict[float, tuple[tuple[float, float, bool], ...]] = {}
 
     @property
     def current_mean_ned_m_s(self) -> NDArray[np.float64]:
@@ -234,15 +240,39 @@ class Environment:
 
     def advance(self, state: EnvironmentState, dt_s: float, rng: np.random.Generator
                 ) -> EnvironmentState:
-        """The state ``dt_s`` seconds later (a new value; ``state`` is unchanged)."""
-        cfg = self.config
-        bc = gauss_markov_step(state._b_current, dt_s, cfg.current.variation.T_s,
-                               cfg.current.variation.sigma, rng)
-        bw = gauss_markov_step(state._b_wind, dt_s, cfg.wind.gusts.T_s,
-                               cfg.wind.gusts.sigma, rng)
-        bz = float(gauss_markov_step(state._b_wave, dt_s, cfg.waves.variation.T_s,
-                                     cfg.waves.variation.sigma, rng))
-        return self._state(state.t_s + dt_s, bc, bw, bz)
+        """The state ``dt_s`` seconds later (a new value; ``state`` is unchanged).
+
+        The arithmetic and the draws of :func:`gauss_markov_step` applied to the current
+        (2 components), the gusts (2) and the wave factor, in that order, on plain floats:
+        one ``standard_normal`` call for all the draws (the generator fills an array with
+        the same sequence as successive calls), so the same seed gives the same states."""
+        coeffs = self._steps.get(dt_s)
+        if coeffs is None:
+            cfg = self.config
+            coeffs = tuple(
+                (a, g.sigma * math.sqrt(1.0 - a * a), g.sigma != 0.0)
+                for g in (cfg.current.variation, cfg.wind.gusts, cfg.waves.variation)
+                for a in (math.exp(-dt_s / g.T_s),))
+            if len(self._steps) >= 16:
+                self._steps.clear()
+            self._steps[dt_s] = coeffs
+        (ac, sc, dc), (aw, sw, dw), (az, sz, dz) = coeffs
+        k = 2 * dc + 2 * dw + dz
+        xi = rng.standard_normal(k).tolist() if k else []
+        b = state._b_current
+        if dc:
+            bc = np.array([ac * b[0] + sc * xi[0], ac * b[1] + sc * xi[1]])
+            xi = xi[2:]
+        else:
+            bc = b * ac
+        b = state._b_wind
+        if dw:
+            bw = np.array([aw * b[0] + sw * xi[0], aw * b[1] + sw * xi[1]])
+            xi = xi[2:]
+        else:
+            bw = b * aw
+        bz = az * state._b_wave + sz * xi[0] if dz else state._b_wave * az
+        return self._state(state.t_s + dt_s, bc, bw, float(bz))
 
     def wave_drift_magnitude(self, params: VesselParams, state: EnvironmentState) -> float:
         """Drift force magnitude [N]: ½ ρ g (H_s/2)² L · reflection · factor."""
@@ -253,17 +283,26 @@ class Environment:
 
     def forces(self, params: VesselParams, x: ArrayLike, state: EnvironmentState
                ) -> NDArray[np.float64]:
-        """τ_d (n, 3) [N, N, Nm], body frame, for states ``x`` (n, 6)."""
-        x = np.atleast_2d(np.asarray(x, dtype=float))
-        tau = np.zeros((x.shape[0], 3))
-        if np.any(state.current_ned_m_s != 0.0):
-            tau += current_force(params, x, state.current_ned_m_s)
-        if np.any(state.wind_ned_m_s != 0.0) or np.any(x[:, 3:5] != 0.0):
-            tau += wind_force(params, x, state.wind_ned_m_s, coefficients=self._coeff)
-        if self.config.waves.Hs_m > 0.0:
-            tau += wave_drift_force(params, x, self.wave_drift_magnitude(params, state),
-                                    self.config.waves.direction_rad)
-        return tau
+        """τ_d (n, 3) [N, N, Nm], body frame, for states ``x`` (n, 6): current, wind and
+        wave drift in one compiled pass (:func:`~asvtwin.environment.forces.environment_force`,
+        the same arithmetic as the sum of the three NumPy force functions)."""
+        x = np.ascontiguousarray(np.atleast_2d(np.asarray(x, dtype=np.float64)))
+        if x.ndim != 2 or x.shape[1] != 6:
+            raise StateError(f"x must have shape (n, 6), actually: {x.shape}")
+        rows = self._rows.get(id(params))
+        if rows is None or rows[0] is not params:
+            w = self.config.waves
+            wind, wave = environment_rows(params, self._coeff, RHO_AIR, w.direction_rad, 0.05,
+                                          w.Hs_m > 0.0)
+            if len(self._rows) >= 16:
+                self._rows.clear()
+            rows = self._rows[id(params)] = (params, wind, wave, _packed(params))
+        F = self.wave_drift_magnitude(params, state) if self.config.waves.Hs_m > 0.0 else 0.0
+        out = np.zeros((x.shape[0], 3))
+        _environment_force_batch(x, np.ascontiguousarray(state.current_ned_m_s, np.float64),
+                                 np.ascontiguousarray(state.wind_ned_m_s, np.float64),
+                                 rows[3], rows[1], rows[2], F, out)
+        return out
 
 
 def _full_scale_default() -> EnvironmentConfig:

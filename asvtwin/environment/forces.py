@@ -50,6 +50,7 @@ __all__ = [
     "RHO_AIR",
     "WindCoefficients",
     "current_force",
+    "environment_force",
     "wave_drift_force",
     "wind_force",
 ]
@@ -198,3 +199,100 @@ def wave_drift_force(params: VesselParams, x: ArrayLike, magnitude_n: ArrayLike,
     tau[:, 1] = F * np.sin(rel)
     tau[:, 2] = F * c_yaw * params.length * np.sin(2.0 * rel)
     return tau
+
+
+@njit(cache=True)
+def _environment_force_batch(x, vc, vw, P, wind, wave, F, out):  # pragma: no cover - compiled
+    """Current, wind and wave drift on states ``x`` (n, 6) added into ``out`` (n, 3), in
+    one compiled pass: the arithmetic of :func:`current_force`, :func:`wind_force` and
+    :func:`wave_drift_force` operation for operation (for one vessel the NumPy versions
+    spend ~30 calls on 1-element arrays per step).
+
+    ``vc``, ``vw``: (2,) current and air velocity over ground [m/s];
+    ``wind``: [c_x, c_y, c_n, rho_air, area_frontal, area_lateral, length];
+    ``wave``: [travel direction β, beam/length, c_yaw, length, on (0/1)]; ``F`` the
+    drift force magnitude [N].
+    Each part is added only where :meth:`Environment.forces` adds it: the current when
+    it is non-zero, the wind when it or any vessel's (u, v) is non-zero, the waves when
+    H_s > 0."""
+    n = x.shape[0]
+    use_current = vc[0] != 0.0 or vc[1] != 0.0
+    use_wind = vw[0] != 0.0 or vw[1] != 0.0
+    if not use_wind:
+        for i in range(n):
+            if x[i, 3] != 0.0 or x[i, 4] != 0.0:
+                use_wind = True
+                break
+    for i in range(n):
+        c = math.cos(x[i, 2])
+        s = math.sin(x[i, 2])
+        u, v, r = x[i, 3], x[i, 4], x[i, 5]
+        if use_current:
+            uc = c * vc[0] + s * vc[1]
+            vcb = -s * vc[0] + c * vc[1]
+            a0, a1, a2 = hydrodynamic_force(u, v, r, P[0])
+            b0, b1, b2 = hydrodynamic_force(u - uc, v - vcb, r, P[0])
+            out[i, 0] += a0 - b0
+            out[i, 1] += a1 - b1
+            out[i, 2] += a2 - b2
+        if use_wind:
+            uw = c * vw[0] + s * vw[1]
+            vwb = -s * vw[0] + c * vw[1]
+            u_rw = u - uw
+            v_rw = v - vwb
+            gamma = -math.atan2(v_rw, u_rw)
+            q = 0.5 * wind[3] * (u_rw**2 + v_rw**2)
+            out[i, 0] += -q * wind[0] * math.cos(gamma) * wind[4]
+            out[i, 1] += q * wind[1] * math.sin(gamma) * wind[5]
+            out[i, 2] += q * wind[2] * math.sin(2.0 * gamma) * wind[5] * wind[6]
+        if wave[4] != 0.0:
+            rel = wave[0] - x[i, 2]
+            out[i, 0] += F * math.cos(rel) * wave[1]
+            out[i, 1] += F * math.sin(rel)
+            out[i, 2] += F * wave[2] * wave[3] * math.sin(2.0 * rel)
+
+
+def environment_force(params: VesselParams, x: ArrayLike, current_ned_m_s: ArrayLike,
+                      wind_ned_m_s: ArrayLike, *, wave_magnitude_n: float = 0.0,
+                      wave_travel_dir_rad: float = 0.0, waves: bool = False,
+                      coefficients: WindCoefficients | None = None, rho_air: float = RHO_AIR,
+                      c_yaw: float = 0.05) -> NDArray[np.float64]:
+    """τ_d (n, 3) [N, N, Nm] of current, wind and (with ``waves``) wave drift together,
+    compiled: the sum of :func:`current_force`, :func:`wind_force` and
+    :func:`wave_drift_force` (added in that order, each where the environment adds it),
+    one compiled call instead of ~30 NumPy calls.
+
+    Parameters
+    ----------
+    x : array_like, (n, 6) or (6,)
+    current_ned_m_s, wind_ned_m_s : array_like, (2,)
+        Current and air velocity over ground [N, E] [m/s], shared by every vessel.
+    wave_magnitude_n : float
+        Drift force magnitude [N]; ``wave_travel_dir_rad`` the waves' travel direction.
+    """
+    k = coefficients or WindCoefficients()
+    x = np.ascontiguousarray(np.atleast_2d(np.asarray(x, dtype=np.float64)))
+    if x.ndim != 2 or x.shape[1] != 6:
+        raise StateError(f"x must have shape (n, 6), actually: {x.shape}")
+    vc = np.asarray(current_ned_m_s, dtype=np.float64)
+    vw = np.asarray(wind_ned_m_s, dtype=np.float64)
+    if vc.shape != (2,) or vw.shape != (2,):
+        raise StateError(f"current and wind must have shape (2,), actually: {vc.shape}, "
+                         f"{vw.shape}")
+    wind, wave = environment_rows(params, k, rho_air, wave_travel_dir_rad, c_yaw, waves)
+    out = np.zeros((x.shape[0], 3))
+    _environment_force_batch(x, vc, vw, _packed(params), wind, wave, float(wave_magnitude_n),
+                             out)
+    return out
+
+
+def environment_rows(params: VesselParams, coefficients: WindCoefficients, rho_air: float,
+                     wave_travel_dir_rad: float, c_yaw: float, waves: bool
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The constant rows of :func:`_environment_force_batch` (wind, waves) for a hull."""
+    k = coefficients
+    wind = np.array([k.c_x, k.c_y, k.c_n, rho_air, params.area_frontal,
+                     params.area_lateral, params.length])
+    wave = np.array([float(wave_travel_dir_rad), params.beam / params.length, c_yaw,
+                     params.length, 1.0 if waves else 0.0])
+    return wind, wave

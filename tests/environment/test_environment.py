@@ -12,6 +12,7 @@ from asvtwin.environment import (
     GaussMarkov,
     WaveConfig,
     WindConfig,
+    calm_environment,
     current_force,
     default_environment,
     gauss_markov_step,
@@ -119,3 +120,83 @@ def test_wave_drift_magnitude_and_direction():
 def test_bad_environment_config_refused(make):
     with pytest.raises(ConfigError, match="must be"):
         make()
+
+
+def _numpy_reference_forces(env, params, x, state):
+    """τ_d as the sum of the public NumPy force functions (the environment's arithmetic
+    before it was compiled into one pass)."""
+    from asvtwin.environment import wave_drift_force
+
+    x = np.atleast_2d(x)
+    tau = np.zeros((x.shape[0], 3))
+    if np.any(state.current_ned_m_s != 0.0):
+        tau += current_force(params, x, state.current_ned_m_s)
+    if np.any(state.wind_ned_m_s != 0.0) or np.any(x[:, 3:5] != 0.0):
+        c = env.config.wind
+        from asvtwin.environment import WindCoefficients
+
+        tau += wind_force(params, x, state.wind_ned_m_s,
+                          coefficients=WindCoefficients(c.c_x, c.c_y, c.c_n))
+    if env.config.waves.Hs_m > 0.0:
+        tau += wave_drift_force(params, x, env.wave_drift_magnitude(params, state),
+                                env.config.waves.direction_rad)
+    return tau
+
+
+@pytest.mark.parametrize("params", [cybership2(), FULL], ids=["model", "full"])
+@pytest.mark.parametrize("calm", [False, True])
+def test_compiled_forces_equal_the_numpy_forces(params, calm):
+    """The compiled one-pass τ_d equals current + wind + wave drift computed by the
+    separate NumPy functions to 1e-12 (relative to the force's scale), for one vessel and
+    a batch, at both hull scales, in the default sea state and in calm water (where the
+    wind term is skipped for a vessel at rest)."""
+    cfg = calm_environment() if calm else default_environment(params)
+    env = Environment(cfg)
+    rng = np.random.default_rng(11)
+    state = env.initial_state(rng)
+    scale = math.sqrt(params.length / 1.255)
+    for _ in range(50):
+        state = env.advance(state, 0.5, rng)
+        x = np.column_stack([rng.normal(0, 100, (5, 2)), rng.uniform(-4, 4, 5),
+                             scale * rng.normal(0, 0.3, (5, 2)), rng.normal(0, 0.05, 5) / scale])
+        for xs in (x[0], x):
+            got = env.forces(params, xs, state)
+            ref = _numpy_reference_forces(env, params, xs, state)
+            tol = 1e-12 * max(1.0, float(np.abs(ref).max()))
+            np.testing.assert_allclose(got, ref, rtol=0, atol=tol)
+    if calm:  # at rest in calm water: no force at all
+        assert not env.forces(params, np.zeros(6), state).any()
+
+
+def test_advance_matches_gauss_markov_steps():
+    """The environment's step of its five Gauss-Markov processes (one draw call) gives
+    the states of :func:`gauss_markov_step` applied one process at a time with the same
+    generator, bit for bit, also with a process switched off (σ = 0: no draw)."""
+    for cfg in (default_environment(FULL),
+                EnvironmentConfig(current=CurrentConfig(0.2, 0.5, GaussMarkov(0.0, 600.0)),
+                                  wind=WindConfig(5.0, 1.0, GaussMarkov(1.0, 30.0)),
+                                  waves=WaveConfig(0.5, 0.3, 0.3, GaussMarkov(0.0, 120.0)))):
+        env = Environment(cfg)
+        r1, r2 = np.random.default_rng(5), np.random.default_rng(5)
+        s = env.initial_state(r1)
+        env.initial_state(r2)
+        bc, bw, bz = s._b_current, s._b_wind, s._b_wave
+        for k in range(200):
+            dt = 0.05 if k % 3 else 0.1
+            s = env.advance(s, dt, r1)
+            bc = gauss_markov_step(bc, dt, cfg.current.variation.T_s,
+                                   cfg.current.variation.sigma, r2)
+            bw = gauss_markov_step(bw, dt, cfg.wind.gusts.T_s, cfg.wind.gusts.sigma, r2)
+            bz = float(gauss_markov_step(bz, dt, cfg.waves.variation.T_s,
+                                         cfg.waves.variation.sigma, r2))
+            assert np.array_equal(s._b_current, bc) and np.array_equal(s._b_wind, bw)
+            assert s._b_wave == bz
+        assert r1.standard_normal() == r2.standard_normal()  # the same number of draws
+
+
+def test_forces_refuse_a_bad_state():
+    from asvtwin.errors import StateError
+
+    env = Environment(default_environment(FULL))
+    with pytest.raises(StateError, match="shape"):
+        env.forces(FULL, np.zeros(5), env.initial_state(np.random.default_rng(0)))
