@@ -23,7 +23,8 @@ def los_kernel(p, w, origin, k, lookahead, R, chi, cte, cot_max=0.0,
     p (n, 2) positions; w (kw, 2) waypoints; origin (n, 2) leg start for waypoint 0;
     k (n,) index of the waypoint steered to; lookahead Δ and radius R [m]; ``cot_max``
     = 1 / tan(χ_max) bounds the intercept angle (Δ(e) = max(Δ, |e| cot χ_max); 0: constant
-    Δ); the along-track switch only while |e| < ``switch_cte`` [m] (inf: always). Returns
+    Δ); the along-track switch only while |e| < ``switch_cte`` [m] (inf: always) or while
+    the next leg (as a segment) is no farther than |e|. Returns
     False (and changes nothing) if a position is NaN or infinite.
     """
     n = p.shape[0]
@@ -34,7 +35,7 @@ def los_kernel(p, w, origin, k, lookahead, R, chi, cte, cot_max=0.0,
     for i in range(n):
         px, py = p[i, 0], p[i, 1]
         # switch while inside the acceptance circle, or past (leg - R) along track while
-        # near the leg (|e| < switch_cte)
+        # near the leg (|e| < switch_cte) or at least as near the next leg (a segment)
         while k[i] < kw:
             kk = k[i]
             if kk == 0:
@@ -46,7 +47,14 @@ def los_kernel(p, w, origin, k, lookahead, R, chi, cte, cot_max=0.0,
             along = (px - ax) * math.cos(pi_p) + (py - ay) * math.sin(pi_p)
             e_k = -(px - ax) * math.sin(pi_p) + (py - ay) * math.cos(pi_p)
             dist = math.hypot(w[kk, 0] - px, w[kk, 1] - py)
-            if dist <= R or (along >= math.hypot(dx, dy) - R and abs(e_k) < switch_cte):
+            near = abs(e_k) < switch_cte
+            if not near and kk + 1 < kw:  # distance to the next leg, a segment
+                bx, by = w[kk + 1, 0] - w[kk, 0], w[kk + 1, 1] - w[kk, 1]
+                bb = bx * bx + by * by
+                t = 0.0 if bb == 0.0 else ((px - w[kk, 0]) * bx + (py - w[kk, 1]) * by) / bb
+                t = min(max(t, 0.0), 1.0)
+                near = math.hypot(px - w[kk, 0] - t * bx, py - w[kk, 1] - t * by) <= abs(e_k)
+            if dist <= R or (along >= math.hypot(dx, dy) - R and near):
                 k[i] += 1
             else:
                 break

@@ -46,9 +46,11 @@ catches a craft that misses the circle) when its along-track distance passes
 :math:`\\lVert p_{k+1} - p_k \\rVert - R`. Fossen's alternative ignores the cross-track
 error: a craft pushed far off the leg (by an avoidance manoeuvre) would skip it while
 still far from it. With ``switch_cte_m`` the along-track test only counts while
-:math:`|e| <` ``switch_cte_m``; farther off, the craft keeps steering to the leg (extended
-beyond its end when it is past it) and switches once it is back near it or inside the
-circle. After the last waypoint the output is ``done``.
+:math:`|e| <` ``switch_cte_m``, or while the next leg (as a segment) is no farther from
+the craft than :math:`|e|` (a craft pushed round the far side of the next waypoint heads
+for the next leg rather than back to the one it passed); otherwise the craft keeps
+steering to its leg (extended beyond its end when it is past it) and switches once it is
+near it or inside the circle. After the last waypoint the output is ``done``.
 
 Everything is batched: ``n`` craft on the same route each keep their own leg index.
 :func:`los_steer` is the pure, stateless form for craft on different legs (the synthetic
@@ -166,8 +168,9 @@ class LosGuidance:
         None (default): constant lookahead.
     switch_cte_m : float, optional
         The along-track switching test only counts while the cross-track error is below
-        this [m] (> 0); e.g. ``acceptance_radius_m``. None (default): Fossen's alternative
-        as is, at any cross-track error.
+        this [m] (> 0; e.g. ``acceptance_radius_m``) or the next leg is no farther than
+        the cross-track error. None (default): Fossen's alternative as is, at any
+        cross-track error.
 
     Examples
     --------

@@ -268,7 +268,8 @@ def test_bounded_intercept_returns_from_far_off_at_45_degrees_on_the_vessel_mode
 def test_along_track_switching_waits_for_the_craft_to_be_near_the_leg():
     """Fossen's along-track switch ignores the cross-track error: a craft 800 m off a leg,
     past its end along track, skips it. With switch_cte_m = R it keeps the leg, steers
-    back to it (extended past its end) and switches once within R of it; the circle of
+    back to it (extended past its end) and switches once within R of it, or once it has
+    gone round the waypoint so that the next leg is nearer than this one; the circle of
     acceptance still switches anywhere."""
     route = [[0.0, 0.0], [1000.0, 0.0], [1000.0, 1000.0]]
     R = 50.0
@@ -284,6 +285,10 @@ def test_along_track_switching_waits_for_the_craft_to_be_near_the_leg():
     assert math.cos(out.course_rad) > 0.1 and math.sin(out.course_rad) > 0.9  # back east
     assert los.step([1020.0, -60.0]).waypoint_index == 1  # still 60 m > R off
     assert los.step([1030.0, -40.0]).waypoint_index == 2  # near the leg, past its end
+    # on the near side of the waypoint the next leg is never nearer (its start is the
+    # waypoint): no skip; round the far side, beside the next leg, it is
+    assert make(switch_cte_m=R).step([1300.0, -600.0]).waypoint_index == 1
+    assert make(switch_cte_m=R).step([1300.0, 600.0]).waypoint_index == 2  # 300 m < 600 m
     circle = make(switch_cte_m=1e-3)
     assert circle.step([1000.0, 30.0]).waypoint_index == 2  # inside the circle of acceptance
     with pytest.raises(ParameterError, match="switch_cte_m"):
