@@ -151,6 +151,44 @@ def test_chart_3d_table_and_status_are_drawn(live):
     assert not foreign
 
 
+def test_targets_are_drawn_where_maplibre_projects_them(live):
+    """The chart's WebGL layer (its own matrix, shaders and symbol atlas) puts each target's
+    symbol at the pixel MapLibre's own projection gives for the target's position, north-up
+    and head-up (the chart turned), and names only the nearest and the dangerous targets."""
+    _srv, _feed, page, foreign = live
+    js = """() => { const V = asvtwinViewer, m = V.map, fr = V.frame, s = V.latest;
+        const c = m.getCanvas();
+        const pts = s.tracks.ids.map((id, i) => {
+            const q = m.project(fr.toLonLat(s.tracks.mean[i][0], s.tracks.mean[i][1]));
+            return [q.x, q.y]; });
+        return {pts, w: c.clientWidth, h: c.clientHeight, bearing: m.getBearing(),
+                labels: V.chart.labels, zoom: m.getZoom()}; }"""
+    try:
+        for orient in ("north", "head"):
+            choose(page, "#sel-orient", orient)
+            page.wait_for_function(f"asvtwinViewer.chart.bearing {'==' if orient == 'north' else '!='} 0",
+                                   timeout=WAIT_MS)
+            page.wait_for_timeout(500)
+            st = page.evaluate(js)
+            img = page.locator("#chart").screenshot()
+            img = np.asarray(Image.open(io.BytesIO(img)).convert("RGB")).astype(int)
+            inside = [(x, y) for x, y in st["pts"] if 12 < x < st["w"] - 12 and 12 < y < st["h"] - 12]
+            assert len(inside) >= 3, st
+            # a symbol's stroke (near-black, red or grey) within 6 px of the projected point
+            hit = 0
+            for x, y in inside:
+                box = img[int(y) - 6:int(y) + 7, int(x) - 6:int(x) + 7]
+                dark = (box.max(axis=2) < 80).sum()
+                red = (np.abs(box - np.array([224, 20, 30])).max(axis=2) < 40).sum()
+                hit += (dark + red) >= 3
+            assert hit >= 0.9 * len(inside), (hit, len(inside), orient)
+            # names: the nearest 20 and the dangerous ones, not all 24 targets on top of each other
+            assert st["zoom"] >= 11.5 and 1 <= st["labels"] <= 20 + viewer(page)["table"]["dangerous"]
+    finally:
+        choose(page, "#sel-orient", "north")
+    assert not foreign
+
+
 def test_the_page_projects_like_asvtwin_geo(live):
     _srv, feed, page, _ = live
     rng = np.random.default_rng(1)
@@ -283,11 +321,9 @@ def test_whatif_draws_ghosts_and_the_answer(live):
         assert pos.shape[1] == 2 and len(pos) == len(ans["ghost_t_s"])
         assert np.hypot(*(pos[0] - own)) < 5.0  # each future starts at the own ship
     page.wait_for_function("asvtwinViewer.chart.ghosts == 6", timeout=WAIT_MS)
-    q = ("asvtwinViewer.map.querySourceFeatures('dyn', {filter: ['has', 'alt']})"
-         ".map(f => [f.properties.alt, f.properties.color])")
-    # in MapLibre's tiles once its worker re-tiled the source (a line cut at a tile edge
-    # counts once per tile)
-    page.wait_for_function(f"{q}.length >= 6", timeout=WAIT_MS)
+    # the lines in the chart's WebGL layer (built with the next snapshot drawn)
+    q = "asvtwinViewer.chartView.drawnGhosts()"
+    page.wait_for_function(f"{q}.length == 6", timeout=WAIT_MS)
     drawn = page.evaluate(q)
     # one colour per alternative, red (224, 20, 30) where that future collided
     colours = {a: {c for alt, c in drawn if alt == a} for a in ("route", "starboard:30")}

@@ -2,25 +2,26 @@
 // glyph or sprite server). Everything the snapshot holds in scene NED metres is converted
 // to lon/lat with the scene's exact LocalFrame port (geo.js).
 //
-// Drawing cost. With software WebGL (SwiftShader) every draw call fans out to the
-// rasteriser's threads, so a frame costs about (draw calls) x (a thread round trip), and
-// MapLibre issues one draw per layer per tile. The chart therefore keeps the draw calls
-// few: every moving part is one GeoJSON source updated by one setData per snapshot, drawn
-// by five layers whose colour, width and dashes come from each feature's properties
-// (one fill, one line, one circle, two symbol layers); and each GeoJSON source is tiled
-// at most ZOOM_DEPTH zoom levels below the view (overzoomed tiles: 1-4 cover the chart
-// instead of 6-12), re-made when the user zooms past that. At ZOOM_DEPTH = 3 a tile
-// coordinate (1/8192 of a tile) is 1/2 pixel on screen. Software rasterising also pays per
-// pixel shaded, so the water is no layer but the CSS colour behind a transparent canvas.
+// Drawing cost. The land is a GeoJSON source tiled once (at most ZOOM_DEPTH zoom levels
+// below the view: 1-4 overzoomed tiles cover the chart instead of 6-12; re-made when the
+// user zooms past that), drawn by two layers. Everything that moves (targets and their
+// vectors and names, cones, ellipses, LiDAR points, the plan, arrows, ghosts) is drawn by
+// one WebGL custom layer (chartlayer.js) from typed arrays filled per snapshot: no GeoJSON,
+// no worker re-tiling, five draw calls per frame. Software rasterising pays per pixel
+// shaded, so the water is no layer but the CSS colour behind a transparent canvas.
+// Declutter: names are shown for the LABELS nearest targets and every dangerous one (an
+// ECDIS shows target labels selectively; all 200 names over each other help nobody).
 import * as maplibregl from 'maplibre-gl';
-import { addSymbols } from './symbols.js';
+import { SymbolAtlas } from './symbols.js';
+import { ChartLayer } from './chartlayer.js';
 import { deg } from './geo.js';
 
 const VECTOR_S = 360;          // COG/SOG vectors: 6 minutes ahead
 const ZOOM_DEPTH = 3;          // sources tiled at most this many zoom levels below the view
+const LABELS = 20;             // names shown: the nearest targets, and all dangerous ones
+const LABEL_MINZOOM = 11.5;    // no names when zoomed out further
 // what-if ghosts: one colour per alternative (in the order of the answer)
 export const GHOST_COLOURS = ['#1f5fd0', '#d4691e', '#8e3bb5', '#0f8f8f', '#b8860b', '#c2185b', '#5d4037', '#455a64'];
-const EMPTY = { type: 'FeatureCollection', features: [] };
 const PALETTES = {
   day: { water: '#d4eaee', land: '#d8c89a', coast: '#6b5a2e', own: '#0b0b0b', route: '#d4691e' },
   dusk: { water: '#6d8a96', land: '#8a7f5e', coast: '#3d321a', own: '#f0f0f0', route: '#f0a050' },
@@ -30,7 +31,6 @@ const PALETTES = {
 const fc = (features) => ({ type: 'FeatureCollection', features });
 const feat = (geometry, properties = {}) => ({ type: 'Feature', geometry, properties });
 const line = (coords, p) => feat({ type: 'LineString', coordinates: coords }, p);
-const poly = (ring, p) => feat({ type: 'Polygon', coordinates: [ring] }, p);
 
 // A body-frame outline (x forward, y starboard) placed at p with heading psi, in NED.
 function placed(outline, p, psi) {
@@ -75,9 +75,22 @@ function cone(means, radii) {
     const t = a + Math.PI / 2 + (k * Math.PI) / 8;
     back.push([p0[0] + r0 * Math.cos(t), p0[1] + r0 * Math.sin(t)]);
   }
+  // triangles: a strip between the two sides, a fan around each end
+  const tris = [];
+  for (let i = 0; i + 1 < n; i++) tris.push(left[i], right[i], left[i + 1], left[i + 1], right[i], right[i + 1]);
+  const fan = (c, arc) => { for (let k = 0; k + 1 < arc.length; k++) tris.push(c, arc[k], arc[k + 1]); };
+  fan(pl, [left[n - 1], ...cap, right[n - 1]]);
+  fan(p0, [right[0], ...back, left[0]]);
   const ring = [...left, ...cap, ...right.reverse(), ...back];
   ring.push(ring[0]);
-  return ring;
+  return { ring, tris };
+}
+
+// a convex polygon's triangles (a fan from its first point)
+function fanTris(ring) {
+  const tris = [];
+  for (let k = 1; k + 1 < ring.length; k++) tris.push(ring[0], ring[k], ring[k + 1]);
+  return tris;
 }
 
 function ellipseRing(c, ax, angle, k = 24) {
@@ -94,13 +107,15 @@ export class Chart {
   constructor(el, scene, frame, { onClick } = {}) {
     this.frame = frame;
     this.scene = scene;
-    this.stats = { updates: 0, targets: 0, cones: 0, planStages: 0, criticalStages: 0, lidarPoints: 0, ellipses: 0, ghosts: 0, loaded: false, idle: 0, renders: 0, sourceMaxzoom: null };
+    this.stats = { updates: 0, targets: 0, cones: 0, planStages: 0, criticalStages: 0, lidarPoints: 0, ellipses: 0, ghosts: 0, labels: 0, loaded: false, idle: 0, renders: 0, sourceMaxzoom: null };
     this.orientation = 'north';
     this.follow = true;
     this.palette = 'day';
     this.draft = [];
-    this.ghostFeats = [];
+    this.ghosts = [];
     this.last = null;
+    this.layer = new ChartLayer(frame, new SymbolAtlas());
+    this.stats.layer = this.layer.stats;
     const o = scene.origin;
     this.map = new maplibregl.Map({
       container: el,
@@ -123,34 +138,26 @@ export class Chart {
 
   _wantMaxzoom() { return Math.max(0, Math.floor(this.map.getZoom()) - ZOOM_DEPTH); }
 
-  // The layers, bottom to top. Everything that moves is in source `dyn`: its features carry
-  // their own style (`fill`, `color`, `width`, `dash`, `r`, `stroke`), so one layer per
-  // geometry kind draws them all.
+  // The layers, bottom to top: land, coast, everything that moves (the WebGL layer), the
+  // route being edited.
   _layers() {
     const P = PALETTES[this.palette] || PALETTES.day;
-    const dash = ['match', ['get', 'dash'], 'long', ['literal', [4, 2]], 'cog', ['literal', [4, 3]],
-      'short', ['literal', [2, 2]], 'cpa', ['literal', [3, 2]], ['literal', [1, 0]]];
     return [
       { id: 'land', type: 'fill', source: 'land', paint: { 'fill-color': P.land } },
       { id: 'coast', type: 'line', source: 'land', paint: { 'line-color': P.coast, 'line-width': 1 } },
-      { id: 'dyn-fill', type: 'fill', source: 'dyn', filter: ['==', ['get', 'k'], 'f'], paint: { 'fill-color': ['get', 'fill'] } },
-      { id: 'dyn-line', type: 'line', source: 'dyn', filter: ['==', ['get', 'k'], 'l'], paint: { 'line-color': ['get', 'color'], 'line-width': ['get', 'width'], 'line-dasharray': dash } },
-      { id: 'dyn-circle', type: 'circle', source: 'dyn', filter: ['==', ['get', 'k'], 'c'], paint: { 'circle-radius': ['get', 'r'], 'circle-color': ['get', 'fill'], 'circle-stroke-color': ['get', 'stroke'], 'circle-stroke-width': ['get', 'sw'] } },
-      { id: 'targets', type: 'symbol', source: 'dyn', filter: ['==', ['get', 'k'], 's'], layout: { 'icon-image': ['get', 'icon'], 'icon-rotate': ['get', 'rot'], 'icon-rotation-alignment': 'map', 'icon-allow-overlap': true, 'icon-ignore-placement': true } },
-      { id: 'labels', type: 'symbol', source: 'dyn', filter: ['==', ['get', 'k'], 's'], minzoom: 11.5, layout: { 'icon-image': ['concat', 'name:', ['get', 'name']], 'icon-anchor': 'left', 'icon-offset': [12, 0], 'icon-allow-overlap': true, 'icon-ignore-placement': true } },
+      this.layer,
       { id: 'draft', type: 'line', source: 'draft', paint: { 'line-color': '#d4691e', 'line-width': 3 } },
     ];
   }
 
-  // (Re)make the GeoJSON sources tiled at `maxzoom` and their layers.
+  // (Re)make the GeoJSON sources tiled at `maxzoom` and the layers.
   _build(maxzoom) {
     const m = this.map;
     for (const l of this._layers()) if (m.getLayer(l.id)) m.removeLayer(l.id);
-    for (const id of ['land', 'dyn', 'draft']) if (m.getSource(id)) m.removeSource(id);
+    for (const id of ['land', 'draft']) if (m.getSource(id)) m.removeSource(id);
     const src = (id, data) => m.addSource(id, { type: 'geojson', data, tolerance: 0.2, maxzoom, buffer: 64 });
     src('land', this.scene.land);
-    src('dyn', this._dynData || EMPTY);
-    src('draft', this.draft.length > 1 ? fc([line(this._ll(this.draft))]) : EMPTY);
+    src('draft', fc(this.draft.length > 1 ? [line(this._ll(this.draft))] : []));
     for (const l of this._layers()) m.addLayer(l);
     this.stats.sourceMaxzoom = maxzoom;
   }
@@ -159,11 +166,11 @@ export class Chart {
     if (!this.stats.loaded) return;
     const want = this._wantMaxzoom();
     if (want !== this.stats.sourceMaxzoom) this._build(want);
+    if (this.last) this.update(...this.last);   // the names depend on the zoom
   }
 
   _setup() {
     this.map.getContainer().style.background = PALETTES[this.palette].water;
-    addSymbols(this.map);
     this._build(this._wantMaxzoom());
     this.stats.loaded = true;
     document.getElementById('attribution').textContent = `Land: ${this.scene.attribution} (${this.scene.licence.split(' ').slice(0, 4).join(' ')}…)`;
@@ -188,45 +195,45 @@ export class Chart {
   // What-if ghosts: each future of each alternative as a faint line in the alternative's
   // colour (red where that future collided); drawn from the next update on.
   setGhosts(answer) {
-    const feats = [];
+    const ghosts = [];
     const labels = (answer?.alternatives || []).map((a) => a.label);
     for (const g of answer?.ghosts || []) {
       const k = Math.max(0, labels.indexOf(g.alternative));
       const pos = g.positions_m || [];
       if (pos.length > 1) {
-        feats.push(line(this._ll(pos), { k: 'l', color: g.collision ? 'rgba(224,20,30,0.6)' : hexA(GHOST_COLOURS[k % GHOST_COLOURS.length], 0.55), width: 2.5, dash: 'solid', alt: g.alternative }));
+        ghosts.push({ pos, alt: g.alternative, color: g.collision ? 'rgba(224,20,30,0.6)' : hexA(GHOST_COLOURS[k % GHOST_COLOURS.length], 0.55) });
       }
     }
-    this.ghostFeats = feats;
-    this.stats.ghosts = feats.length;
+    this.ghosts = ghosts;
+    this.stats.ghosts = ghosts.length;
     this.stats.ghostAlternatives = labels.length;
     if (this.last) this.update(...this.last);
   }
+
+  // The ghost lines the chart's layer holds now: [alternative, colour] each.
+  drawnGhosts() { return this.layer.tags.map((t) => [t.tag, t.color]); }
 
   // One snapshot (plus the targets main.js derived from it) onto the chart.
   update(s, targets) {
     this.last = [s, targets];
     if (!this.stats.loaded) return;
-    const m = this.map, own = s.own, p = [own.state[0], own.state[1]], psi = own.state[2];
+    const m = this.map, G = this.layer, own = s.own, p = [own.state[0], own.state[1]], psi = own.state[2];
     const L = own.length_m || 10, B = own.beam_m || 3;
     const sog = own.sog_m_s || 0, cog = own.cog_rad ?? psi;
     const P = PALETTES[this.palette] || PALETTES.day;
-    // features in drawing order within each layer: fills, then lines, then points
-    const all = [];
-    const ln = (pts, color, width, dash = 'solid', extra = {}) => all.push(line(this._ll(pts), { k: 'l', color, width, dash, ...extra }));
-    const pt = (q, r, fill, stroke, sw) => all.push(feat({ type: 'Point', coordinates: this.frame.toLonLat(q[0], q[1]) }, { k: 'c', r, fill, stroke, sw }));
-    const mpt = (qs, r, fill) => all.push(feat({ type: 'MultiPoint', coordinates: qs }, { k: 'c', r, fill, stroke: 'rgba(0,0,0,0)', sw: 0 }));
+    G.atlas.trim();
+    G.begin();
+    const ln = (pts, color, width, dash = 'solid', tag = null) => G.line(pts, color, width, dash, tag);
 
-    // tracks: prediction cones ("green broadening path") and centrelines
-    const tr = s.tracks;
-    let nCones = 0;
+    // fills: prediction cones ("green broadening path"), the own ship's hull to scale
+    const tr = s.tracks, hull = placed(hullOutline(L, B), p, psi), rings = [];
     (tr.ids || []).forEach((id, i) => {
-      const ring = cone(tr.pred_mean[i] || [], tr.pred_radius_m[i] || []);
-      if (ring) { all.push(poly(this._ll(ring), { k: 'f', fill: 'rgba(40,170,60,0.22)' })); ln(ring, 'rgba(20,120,40,0.7)', 1); nCones += 1; }
+      const c = cone(tr.pred_mean[i] || [], tr.pred_radius_m[i] || []);
+      if (c) { G.fill(c.tris, 'rgba(40,170,60,0.22)'); rings.push(c.ring); }
     });
-    // own ship: hull to scale (fill + outline)
-    const hull = placed(hullOutline(L, B), p, psi);
-    all.push(poly(this._ll(hull), { k: 'f', fill: 'rgba(255,255,255,0.4)' }));
+    G.fill(fanTris(hull), 'rgba(255,255,255,0.4)');
+    // lines, bottom to top: cone outlines, hull, centrelines
+    for (const r of rings) ln(r, 'rgba(20,120,40,0.7)', 1);
     ln(hull, P.own, 1);
     (tr.ids || []).forEach((id, i) => { const mm = tr.pred_mean[i] || []; if (mm.length > 1) ln(mm, '#1f8a35', 1); });
     // route and past track
@@ -234,7 +241,7 @@ export class Chart {
     if (route.length) ln([p, ...route.slice(own.waypoint_index || 0)], P.route, 2, 'long');
     if ((own.past_track || []).length > 1) ln([...own.past_track, p], '#555555', 1.5);
     // what-if ghosts over the route, under the plan and the targets
-    for (const g of this.ghostFeats) all.push(g);
+    for (const g of this.ghosts) ln(g.pos, g.color, 2.5, 'solid', g.alt);
     // fitted ellipses
     const el = s.ellipses;
     let nEll = 0;
@@ -245,7 +252,7 @@ export class Chart {
     if (f.enabled) {
       for (let i = 0; i + 1 < plan.length; i++) {
         const critical = crit.has(i + 1) || crit.has(i);
-        ln([plan[i], plan[i + 1]], critical ? '#e0141e' : '#1a9a2a', 5, 'solid', { critical });
+        ln([plan[i], plan[i + 1]], critical ? '#e0141e' : '#1a9a2a', 5);
         nPlan += 1; nCrit += critical ? 1 : 0;
       }
     }
@@ -263,9 +270,8 @@ export class Chart {
       const side = [p[0] + 2 * L * Math.cos(psi + Math.PI / 2), p[1] + 2 * L * Math.sin(psi + Math.PI / 2)];
       ln(arrow(side, w.wind_from_rad + Math.PI, 2.5 * L), '#444444', 2);
     }
-    // targets: vectors, CPA lines of dangerous ones, symbols along heading, names
+    // targets: vectors, CPA lines of dangerous ones
     const v0 = [sog * Math.cos(cog), sog * Math.sin(cog)];
-    let nT = 0;
     for (const t of targets) {
       if (t.vel && !t.lost) ln([t.pos, [t.pos[0] + t.vel[0] * VECTOR_S, t.pos[1] + t.vel[1] * VECTOR_S]], t.danger ? '#e0141e' : '#1c1c1c', 1.2, 'long');
       if (t.danger && t.tcpa != null) {
@@ -278,22 +284,26 @@ export class Chart {
     const headLen = Math.max(3 * L, 200);
     ln([p, [p[0] + headLen * Math.cos(psi), p[1] + headLen * Math.sin(psi)]], P.own, 2);
     ln([p, [p[0] + sog * VECTOR_S * Math.cos(cog), p[1] + sog * VECTOR_S * Math.sin(cog)]], P.own, 2, 'cog');
-    pt(p, 7, 'rgba(0,0,0,0)', P.own, 2);
-    route.forEach((wp) => pt(wp, 4, 'rgba(0,0,0,0)', P.route, 2));
-    // LiDAR returns: coast grey, vessels magenta
+    // circles: the own ship's position mark, waypoints, LiDAR returns (coast grey, vessels magenta)
+    G.circle(p, 7, 'rgba(0,0,0,0)', P.own, 2);
+    route.forEach((wp) => G.circle(wp, 4, 'rgba(0,0,0,0)', P.route, 2));
     const pts = s.lidar.points || [], coast = s.lidar.coast || [];
-    const cpts = [], vpts = [];
-    pts.forEach((q, i) => (coast[i] ? cpts : vpts).push(this.frame.toLonLat(q[0], q[1])));
-    if (cpts.length) mpt(cpts, 1.6, '#6a6a6a');
-    if (vpts.length) mpt(vpts, 1.6, '#c01cc0');
+    pts.forEach((q, i) => G.circle(q, 1.6, coast[i] ? '#6a6a6a' : '#c01cc0', 'rgba(0,0,0,0)', 0));
+    // symbols along the heading, then the names of the nearest and the dangerous targets
     for (const t of targets) {
       const kind = t.source === 'lidar' ? 'radar' : 'ais';
-      const icon = t.lost ? `${kind}-lost` : t.danger ? `${kind}-danger` : kind;
-      all.push(feat({ type: 'Point', coordinates: this.frame.toLonLat(t.pos[0], t.pos[1]) }, { k: 's', icon, rot: deg(t.heading ?? t.cogRad ?? 0), name: t.label }));
-      nT += 1;
+      G.sprite(t.pos, t.lost ? `${kind}-lost` : t.danger ? `${kind}-danger` : kind, { rot: t.heading ?? t.cogRad ?? 0 });
     }
-    this._dynData = fc(all);
-    m.getSource('dyn').setData(this._dynData);
+    let nLabels = 0;
+    if (m.getZoom() >= LABEL_MINZOOM) {
+      const near = targets.filter((t) => !t.danger).sort((a, b) => a.range - b.range).slice(0, LABELS);
+      for (const t of [...near, ...targets.filter((x) => x.danger)]) {
+        const img = G.atlas.get(`name:${t.label}`);
+        G.sprite(t.pos, `name:${t.label}`, { dx: 12 + img.w / 2, withMap: false });
+        nLabels += 1;
+      }
+    }
+    G.end();
 
     // orientation: north-up, course-up or head-up, following the own ship
     const bearing = this.orientation === 'course' ? deg(cog) : this.orientation === 'head' ? deg(psi) : 0;
@@ -301,8 +311,8 @@ export class Chart {
     else if (m.getBearing() !== bearing) m.jumpTo({ bearing });
 
     Object.assign(this.stats, {
-      updates: this.stats.updates + 1, targets: nT, cones: nCones, planStages: nPlan, criticalStages: nCrit,
-      lidarPoints: pts.length, ellipses: nEll, bearing, features: all.length,
+      updates: this.stats.updates + 1, targets: targets.length, cones: rings.length, planStages: nPlan, criticalStages: nCrit,
+      lidarPoints: pts.length, ellipses: nEll, bearing, labels: nLabels,
     });
   }
 }

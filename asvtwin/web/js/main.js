@@ -131,6 +131,7 @@ async function main() {
   });
   V.chart = chart.stats;
   V.map = chart.map;
+  V.chartView = chart;
   const view = new View3D($('view3d'), scene);
   V.view3d = view.stats;
   V.view = view;

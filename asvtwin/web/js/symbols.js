@@ -1,13 +1,12 @@
-// Chart symbols drawn on a canvas (no sprite server): IEC 62288-style AIS targets as
-// triangles pointing along the heading, radar/LiDAR-only tracks as circles, lost targets
-// crossed out, and name labels as images (MapLibre would need a glyph server for text).
-const SIZE = 32;
-
-function canvas(w, h) {
-  const c = document.createElement('canvas');
-  c.width = w; c.height = h;
-  return [c, c.getContext('2d')];
-}
+// Chart symbols drawn on a canvas (no sprite or glyph server): IEC 62288-style AIS targets
+// as triangles pointing along the heading, radar/LiDAR-only tracks as circles, lost targets
+// crossed out, and name labels, all packed into one canvas that the chart's WebGL layer
+// (chartlayer.js) uses as its texture. Labels are drawn once per name, on first use.
+const SIZE = 32;           // symbol canvas [px]; drawn at SIZE / ICON_RATIO on the chart
+const ICON_RATIO = 1.4;
+const ATLAS = 1024;        // the atlas canvas is ATLAS x ATLAS px
+const LABEL_H = 16;
+const FONT = '12px "DejaVu Sans", sans-serif';
 
 function triangle(ctx, stroke, fill) {
   ctx.beginPath();
@@ -28,32 +27,64 @@ function cross(ctx, stroke) {
   ctx.lineWidth = 2; ctx.strokeStyle = stroke; ctx.stroke();
 }
 
-export function addSymbols(map) {
-  const defs = {
-    'ais': (c) => triangle(c, '#1c1c1c', 'rgba(255,255,255,0.6)'),
-    'ais-danger': (c) => triangle(c, '#e0141e', 'rgba(255,80,80,0.5)'),
-    'ais-lost': (c) => { triangle(c, '#777', null); cross(c, '#777'); },
-    'radar': (c) => circle(c, '#1c1c1c'),
-    'radar-danger': (c) => circle(c, '#e0141e'),
-    'radar-lost': (c) => { circle(c, '#777'); cross(c, '#777'); },
-  };
-  for (const [name, draw] of Object.entries(defs)) {
-    const [cv, ctx] = canvas(SIZE, SIZE);
-    draw(ctx);
-    map.addImage(name, ctx.getImageData(0, 0, SIZE, SIZE), { pixelRatio: 1.4 });
+const ICONS = {
+  'ais': (c) => triangle(c, '#1c1c1c', 'rgba(255,255,255,0.6)'),
+  'ais-danger': (c) => triangle(c, '#e0141e', 'rgba(255,80,80,0.5)'),
+  'ais-lost': (c) => { triangle(c, '#777', null); cross(c, '#777'); },
+  'radar': (c) => circle(c, '#1c1c1c'),
+  'radar-danger': (c) => circle(c, '#e0141e'),
+  'radar-lost': (c) => { circle(c, '#777'); cross(c, '#777'); },
+};
+
+// Images by name ('ais', ..., or 'name:<text>' for a label), packed in shelves; `version`
+// changes whenever the canvas does (the layer then uploads it again).
+export class SymbolAtlas {
+  constructor() {
+    this.canvas = document.createElement('canvas');
+    this.canvas.width = ATLAS; this.canvas.height = ATLAS;
+    this.ctx = this.canvas.getContext('2d', { willReadFrequently: false });
+    this.version = 0;
+    this._clear();
   }
-  // name labels on demand: layers ask for "name:<text>" and get it drawn here
-  map.setMissingStyleImageResolver(async (id) => {
-    if (!id.startsWith('name:') || map.hasImage(id)) return;
-    const text = id.slice(5);
-    const [, probe] = canvas(1, 1);
-    probe.font = '12px "DejaVu Sans", sans-serif';
-    const w = Math.ceil(probe.measureText(text).width) + 6;
-    const [, ctx] = canvas(w, 16);
-    ctx.font = '12px "DejaVu Sans", sans-serif';
-    ctx.lineWidth = 3; ctx.strokeStyle = 'rgba(255,255,255,0.85)';
-    ctx.strokeText(text, 3, 12);
-    ctx.fillStyle = '#111'; ctx.fillText(text, 3, 12);
-    map.addImage(id, ctx.getImageData(0, 0, w, 16));
-  });
+
+  _clear() {
+    this.ctx.clearRect(0, 0, ATLAS, ATLAS);
+    this.images = new Map();
+    this.x = 0; this.y = 0; this.shelf = 0;
+    for (const [name, draw] of Object.entries(ICONS)) {
+      this._place(name, SIZE, SIZE, (ctx) => draw(ctx), SIZE / ICON_RATIO);
+    }
+    this.version += 1;
+  }
+
+  // drop the labels when the atlas is three quarters full (call between two snapshots)
+  trim() { if (this.y > 0.75 * ATLAS) this._clear(); }
+
+  _place(name, w, h, draw, shown = null) {
+    if (this.x + w > ATLAS) { this.x = 0; this.y += this.shelf + 1; this.shelf = 0; }
+    if (this.y + h > ATLAS) throw new Error('symbol atlas full');
+    const { ctx } = this;
+    ctx.save(); ctx.translate(this.x, this.y); draw(ctx); ctx.restore();
+    const k = shown ? shown / w : 1;
+    const img = { w: w * k, h: h * k, uv: [this.x / ATLAS, this.y / ATLAS, (this.x + w) / ATLAS, (this.y + h) / ATLAS] };
+    this.images.set(name, img);
+    this.x += w + 1; this.shelf = Math.max(this.shelf, h);
+    this.version += 1;
+    return img;
+  }
+
+  get(name) {
+    const img = this.images.get(name);
+    if (img) return img;
+    if (!name.startsWith('name:')) throw new Error(`no chart symbol ${name}`);
+    const text = name.slice(5);
+    this.ctx.font = FONT;
+    const w = Math.min(ATLAS, Math.ceil(this.ctx.measureText(text).width) + 6);
+    return this._place(name, w, LABEL_H, (ctx) => {
+      ctx.font = FONT;
+      ctx.lineWidth = 3; ctx.strokeStyle = 'rgba(255,255,255,0.85)';
+      ctx.strokeText(text, 3, 12);
+      ctx.fillStyle = '#111'; ctx.fillText(text, 3, 12);
+    });
+  }
 }
