@@ -103,6 +103,20 @@ function ellipseRing(c, ax, angle, k = 24) {
   return out;
 }
 
+// The vendored MapLibre draws the style's sky in every frame, a default sky when the style
+// has none: one pass over the whole canvas with the sky's fragment shader. The chart is
+// never pitched (maxPitch 0), so the sky is never in view and the pass draws nothing
+// visible, yet with software WebGL it was most of an empty frame's rasterising (llvmpipe:
+// ~50 of ~80 ms of CPU per frame of a blank map, load ~10; measured in docs/viewer.md).
+// MapLibre has no option to turn it off, so its draw function is replaced with a no-op
+// (an internal of the pinned version: when it is not there, nothing is changed).
+function skipSky(map) {
+  const p = map.painter;
+  if (!p || !p.drawFunctions || typeof p.drawFunctions.sky !== 'function') return false;
+  p.drawFunctions = { ...p.drawFunctions, sky: () => {} };
+  return true;
+}
+
 export class Chart {
   constructor(el, scene, frame, { onClick } = {}) {
     this.frame = frame;
@@ -126,6 +140,7 @@ export class Chart {
       maxPitch: 0, renderWorldCopies: false, pixelRatio: 1,
       canvasContextAttributes: { antialias: false, preserveDrawingBuffer: false },
     });
+    this.stats.skySkipped = skipSky(this.map);
     this.map.addControl(new maplibregl.ScaleControl({ unit: 'nautical' }), 'top-right');
     this.ready = new Promise((resolve) => this.map.on('load', () => { this._setup(); resolve(); }));
     this.map.on('idle', () => { this.stats.idle += 1; });
