@@ -54,6 +54,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from asvtwin.checks import F8 as _F8
@@ -74,17 +75,68 @@ def _empty_f8() -> _F8:
 def rhumb_destination(lat_deg: _F8, lon_deg: _F8, north_m: _F8, east_m: _F8
                       ) -> tuple[_F8, _F8]:
     """Move points by ``(north_m, east_m)`` metres along the WGS84 surface (middle-latitude
-    sailing: a rhumb line; see the module docstring). Returns latitude and longitude [deg]."""
-    phi0 = np.radians(lat_deg)
-    phi1 = phi0
-    for _ in range(3):  # phi_m depends on phi_1: three fixed-point steps converge to 1e-15
-        phi_m = 0.5 * (phi0 + phi1)
-        w = 1.0 - _E2 * np.sin(phi_m) ** 2
-        M = WGS84_A_M * (1.0 - _E2) / w ** 1.5
-        phi1 = phi0 + north_m / M
-    N = WGS84_A_M / np.sqrt(w)
-    dlam = east_m / (N * np.cos(phi_m))
-    return np.degrees(phi1), np.asarray(lon_deg) + np.degrees(dlam)
+    sailing: a rhumb line; see the module docstring). Returns latitude and longitude [deg]
+    (compiled: the NumPy arithmetic it replaced, element by element, to 1e-12)."""
+    args = [np.asarray(a, np.float64) for a in (lat_deg, lon_deg, north_m, east_m)]
+    shape = np.broadcast_shapes(*(a.shape for a in args))
+    lat, lon, dn, de = (np.ascontiguousarray(np.broadcast_to(a, shape)) for a in args)
+    out = np.empty((2, lat.size))
+    _rhumb(lat.reshape(-1), lon.reshape(-1), dn.reshape(-1), de.reshape(-1), WGS84_A_M, _E2,
+           out[0], out[1])
+    return out[0].reshape(shape), out[1].reshape(shape)
+
+
+@njit(cache=True)
+def _dead_reckon(U, chi, w, dt, horizon_s, d_n, d_e, chi_end, tau):  # pragma: no cover
+    """Displacement [m] north/east of each target after ``dt`` [s]: a constant turn at
+    rate ``w`` for at most ``horizon_s``, then straight on along the course reached."""
+    for i in range(U.shape[0]):
+        turning = abs(w[i]) > 1e-5
+        t = min(dt[i], horizon_s) if turning else 0.0
+        c_end = chi[i] + w[i] * t
+        if turning:
+            arc_n = U[i] / w[i] * (math.sin(c_end) - math.sin(chi[i]))
+            arc_e = U[i] / w[i] * (math.cos(chi[i]) - math.cos(c_end))
+        else:
+            arc_n = 0.0
+            arc_e = 0.0
+        run = U[i] * (dt[i] - t)
+        d_n[i] = arc_n + run * math.cos(c_end)
+        d_e[i] = arc_e + run * math.sin(c_end)
+        chi_end[i] = c_end
+        tau[i] = t
+
+
+@njit(cache=True)
+def _rhumb(lat_deg, lon_deg, north_m, east_m, a, e2, lat_out, lon_out):  # pragma: no cover
+    for i in range(lat_deg.shape[0]):
+        phi0 = math.radians(lat_deg[i])
+        phi1 = phi0
+        w = 1.0
+        phi_m = phi0
+        for _ in range(3):
+            phi_m = 0.5 * (phi0 + phi1)
+            w = 1.0 - e2 * math.sin(phi_m) ** 2
+            M = a * (1.0 - e2) / w**1.5
+            phi1 = phi0 + north_m[i] / M
+        N = a / math.sqrt(w)
+        lat_out[i] = math.degrees(phi1)
+        lon_out[i] = lon_deg[i] + math.degrees(east_m[i] / (N * math.cos(phi_m)))
+
+
+def dead_reckon(U: _F8, chi: _F8, w: _F8, dt: _F8, horizon_s: float
+                ) -> tuple[_F8, _F8, _F8, _F8]:
+    """Compiled dead reckoning of targets (speed ``U`` [m/s], course ``chi`` [rad], rate
+    of turn ``w`` [rad/s], ``dt`` [s] since the report): the displacement north and east
+    [m], the course reached [rad] and the time spent turning [s] (the turn lasts at most
+    ``horizon_s``; a rate below 1e-5 rad/s is straight). The arithmetic of the NumPy
+    version it replaced, element by element (tested to 1e-12)."""
+    n = U.shape[0]
+    out = np.empty((4, n))
+    _dead_reckon(np.ascontiguousarray(U, np.float64), np.ascontiguousarray(chi, np.float64),
+                 np.ascontiguousarray(w, np.float64), np.ascontiguousarray(dt, np.float64),
+                 float(horizon_s), out[0], out[1], out[2], out[3])
+    return out[0], out[1], out[2], out[3]
 
 
 def nominal_report_interval_s(sog_m_s: _F8, class_b: NDArray[np.bool_],
@@ -375,27 +427,25 @@ class TargetRegistry:
         U = self._sog[idx]
         chi = self._cog[idx]
         w = self._rot[idx] if self.rot_horizon_s > 0 else np.zeros(len(idx))
-        turning = np.abs(w) > 1e-5
-        tau = np.where(turning, np.minimum(dt, self.rot_horizon_s), 0.0)
-        chi_end = chi + w * tau
-        w_safe = np.where(turning, w, 1.0)
-        # arc for tau (constant turn), then straight along chi_end
-        arc_n = np.where(turning, U / w_safe * (np.sin(chi_end) - np.sin(chi)), 0.0)
-        arc_e = np.where(turning, U / w_safe * (np.cos(chi) - np.cos(chi_end)), 0.0)
-        run = U * (dt - tau)
-        # displacement in metres north/east at the ship (its own north: AIS course is true)
-        d_n = arc_n + run * np.cos(chi_end)
-        d_e = arc_e + run * np.sin(chi_end)
+        # arc for tau (constant turn), then straight along chi_end; the displacement in
+        # metres north/east at the ship (its own north: AIS course is true)
+        d_n, d_e, chi_end, tau = dead_reckon(U, chi, w, dt, self.rot_horizon_s)
         ll = self._ll[idx]
         geodetic = self.frame is not None and not np.isnan(ll).any()
         if geodetic:
             frame = self.frame
-            lat, lon = rhumb_destination(ll[:, 0], ll[:, 1], d_n, d_e)
-            pn, pe = frame.to_ned(lat, lon)  # type: ignore[union-attr]
-            pos = np.column_stack([pn, pe]) if len(idx) else np.zeros((0, 2))
-            # meridian convergence: the angle of the ship's north in the scene's NED axes
-            qn, qe = frame.to_ned(lat + 1e-5, lon)  # type: ignore[union-attr]
-            gamma = np.arctan2(np.asarray(qe) - pe, np.asarray(qn) - pn)
+            lat, lon = np.empty(len(idx)), np.empty(len(idx))
+            _rhumb(np.ascontiguousarray(ll[:, 0]), np.ascontiguousarray(ll[:, 1]), d_n, d_e,
+                   WGS84_A_M, _E2, lat, lon)  # (rhumb_destination without its broadcasting)
+            # the positions and, for the meridian convergence (the angle of the ship's
+            # north in the scene's NED axes), points 1e-5 deg north of them: one
+            # conversion of both (elementwise, so the same numbers as two)
+            k = len(idx)
+            ne, ee = frame.to_ned(np.concatenate([lat, lat + 1e-5]),  # type: ignore[union-attr]
+                                  np.concatenate([lon, lon]))
+            pn, pe, qn, qe = ne[:k], ee[:k], ne[k:], ee[k:]
+            pos = np.column_stack([pn, pe]) if k else np.zeros((0, 2))
+            gamma = np.arctan2(qe - pe, qn - pn)
         else:
             pos = self._p[idx].copy()
             pos[:, 0] += d_n
