@@ -128,6 +128,10 @@ class Clusters:
         of the field of view's edge) just beyond that end, i.e. how far the hull may
         continue unseen behind an occluder; 0 where the next ray is empty or farther (a
         true silhouette edge). None when unknown (clusters not from an ordered scan).
+    ray_step_rad : float
+        Angular spacing of the scan's rays [rad] (NaN when unknown). A cluster of one or
+        two returns does not show the ray spacing itself; the hull model needs it to
+        bound the silhouette (the rays beside the cluster missed the hull).
     """
 
     points: _F8
@@ -138,6 +142,7 @@ class Clusters:
     n_invalid: int = 0
     n_small: int = 0
     end_shadow_m: _F8 | None = None
+    ray_step_rad: float = float("nan")
 
     def __len__(self) -> int:
         return int(self.offsets.shape[0] - 1)
@@ -340,7 +345,7 @@ def cluster_scan(scan: LidarScan, land: LandMask | None = None, config: ClusterC
     shadow = _end_shadows(g, off, ranges, hit, step, full, cfg.occlusion_tol_m)
     return Clusters(points=p, offsets=off, t_s=float(scan.t_s), origin_ned=np.array(scan.origin_ned, dtype=float),
                     n_coast=n_before - pts.shape[0], n_invalid=int(n_invalid), n_small=int(small),
-                    end_shadow_m=shadow)
+                    end_shadow_m=shadow, ray_step_rad=step)
 
 
 def _scan_geometry(angles: _F8) -> tuple[float, bool]:

@@ -30,6 +30,12 @@ class TrackerConfig:
         Looser gate for AIS reports of a tied MMSI.
     confirm_m, confirm_n : int
         M-of-N confirmation (1 <= M <= N <= 30).
+    confirm_velocity_std_m_s : float
+        ... and, for a track without AIS, only once its largest velocity standard
+        deviation is below this [m/s] (inf: M-of-N alone). A confirmed track is handed to
+        the safety filter as a moving obstacle; one still carrying the initial velocity
+        prior (``init_velocity_std_m_s``) would be a clearance circle kilometres wide at
+        the end of its horizon.
     max_coast_s, max_coast_ais_s : float
         Deletion after this long without an update [s] (without / with an MMSI tie).
     max_position_std_m : float
@@ -65,13 +71,29 @@ class TrackerConfig:
         A track this fast lends its course as the hull axis to the LiDAR measurement
         (hull-centre model) [m/s] ...
     course_max_std_rad : float
-        ... when the course's standard deviation is below this [rad].
+        ... when the course's standard deviation is below this [rad] ...
+    course_min_returns : int
+        ... to clusters of at least this many returns (>= 1; default 1: every cluster).
+        One or two returns of a far hull show neither its beam nor its length; with the
+        axis known, the model's bounds (length up to ρ_max times a beam the ray spacing
+        allows) can place the centre of a hull seen end-on too deep, and its track lag.
+        3 removed the remaining duplicate tracks of a far end-on hull but raised the
+        open-sea NEES of the calibration scenes (docs/tracking.md, "Duplicate tracks of
+        one far hull").
     split_by_tracks : bool
         Cut a LiDAR cluster that two confirmed tracks (one tied to a fresh AIS report)
         predict into, one piece per track (vessels closer than the segmentation resolves).
         Off by default: without the vessels' dimensions (AIS message 5) the footprints
         come from fitted ellipses, and a merged cluster's fit swallows the neighbour
         (measured in docs/tracking.md, "Splitting by known positions").
+    depth_persistence_s : float or None
+        How long the error of a LiDAR centre persists [s] (the unseen depth of a hull, the
+        rays' sampling of it: the geometry changes slowly). A scan ``Δt`` after the previous
+        one updates the filter with that part of ``R`` scaled by ``max(1, τ / Δt)``: a
+        filter fed every scan must not average a persistent error away, and the number of
+        scans it persists over grows with the scan rate. 3 s is 3 scans at 1 Hz, where it
+        was calibrated (docs/tracking.md); at 10 Hz it is 30. None: use
+        ``lidar.depth_persistence`` (scans) whatever the rate.
     cluster, lidar, ais : ClusterConfig, LidarModel, AisModel
         Segmentation and measurement models.
     """
@@ -82,6 +104,7 @@ class TrackerConfig:
     tied_gate_probability: float = 0.999999
     confirm_m: int = 3
     confirm_n: int = 5
+    confirm_velocity_std_m_s: float = 1.0
     max_coast_s: float = 15.0
     max_coast_ais_s: float = 180.0
     max_position_std_m: float = 150.0
@@ -97,7 +120,9 @@ class TrackerConfig:
     chart_error_m: float = 10.0
     course_min_speed_m_s: float = 0.5
     course_max_std_rad: float = float(np.deg2rad(20.0))
+    course_min_returns: int = 1
     split_by_tracks: bool = False
+    depth_persistence_s: float | None = 3.0
     cluster: ClusterConfig = field(default_factory=ClusterConfig)
     lidar: LidarModel = field(default_factory=lambda: LidarModel(depth_persistence=3.0))
     ais: AisModel = field(default_factory=AisModel)
@@ -108,6 +133,9 @@ class TrackerConfig:
         if not 1 <= self.confirm_m <= self.confirm_n <= 30:
             raise ParameterError(
                 f"TrackerConfig needs 1 <= confirm_m <= confirm_n <= 30, actually: m={self.confirm_m}, n={self.confirm_n}")
+        if not self.confirm_velocity_std_m_s > 0.0:
+            raise ParameterError(f"TrackerConfig.confirm_velocity_std_m_s must be > 0 (inf: off), "
+                                 f"actually: {self.confirm_velocity_std_m_s!r}")
         for name in ("q", "max_coast_s", "max_coast_ais_s", "max_position_std_m", "init_velocity_std_m_s",
                      "min_separation_m", "fusion_window_s", "course_min_speed_m_s", "course_max_std_rad",
                      "identity_margin", "chart_error_m", "merge_distance_m"):
@@ -120,5 +148,11 @@ class TrackerConfig:
         if not 0.0 < self.merge_probability < 1.0 or self.merge_after < 1:
             raise ParameterError(f"TrackerConfig needs merge_probability in (0, 1) and merge_after >= 1, "
                                  f"actually: {self.merge_probability!r}, {self.merge_after!r}")
+        if self.depth_persistence_s is not None and not (np.isfinite(self.depth_persistence_s)
+                                                         and self.depth_persistence_s >= 0.0):
+            raise ParameterError(f"TrackerConfig.depth_persistence_s must be None or finite and >= 0, "
+                                 f"actually: {self.depth_persistence_s!r}")
+        if self.course_min_returns < 1:
+            raise ParameterError(f"TrackerConfig.course_min_returns must be >= 1, actually: {self.course_min_returns!r}")
         if self.ais_reseed_after < 1:
             raise ParameterError(f"TrackerConfig.ais_reseed_after must be >= 1, actually: {self.ais_reseed_after!r}")

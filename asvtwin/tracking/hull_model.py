@@ -130,16 +130,23 @@ def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, pr
         l0, l1 = (c0 - o0) / r, (c1 - o1) / r
     else:
         l0, l1 = 1.0, 0.0
-    if step > 0.0 or n < 2:
-        dphi = step if step > 0.0 else 0.01
-    else:  # mean angular spacing of the returns (dropouts make it conservative)
+    ray = prm[14]  # the scan's ray spacing (0: unknown)
+    amin, amax = 0.0, 0.0
+    if n >= 2:  # bearings of the extreme returns about the line of sight to the centroid
         amin, amax = np.inf, -np.inf
         for j in range(n):
             a = np.arctan2(-(points[s + j, 0] - o0) * l1 + (points[s + j, 1] - o1) * l0,
                            (points[s + j, 0] - o0) * l0 + (points[s + j, 1] - o1) * l1)
             amin, amax = min(amin, a), max(amax, a)
+    if step > 0.0 or n < 2:
+        dphi = step if step > 0.0 else (ray if ray > 0.0 else 0.01)
+    else:  # mean angular spacing of the returns (dropouts make it conservative)
         dphi = max((amax - amin) / (n - 1), 1e-5)
     d = r * dphi
+    # the silhouette across the line of sight: the rays beside the cluster missed the
+    # hull, so it spans at most the visible bearings plus one ray spacing on each side
+    # (one or two returns of a far hull say little more than that)
+    w_sil = r * (amax - amin + 2.0 * (ray if ray > 0.0 else dphi))
     known = np.isfinite(heading_i)
     th = heading_i if known else _box_orientation(points, s, n)
     ch, sh = np.cos(th), np.sin(th)
@@ -176,9 +183,11 @@ def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, pr
         B_lo, B_hi = es / rho_hi, es_hi / rho_lo  # seen broadside: B from the length
     else:  # either side may be the hull axis: the unseen depth up to ρ_min times the
         # longer visible side (a flank seen broadside; a stern seen end-on is deeper, and
-        # is measured again once the track has a course)
-        L_lo, L_hi = 0.0, rho_lo * max(es, et)
-        B_lo, B_hi = 0.0, rho_lo * max(es, et)
+        # is measured again once the track has a course), or times the silhouette's
+        # bound when the returns are too few to show the hull's width
+        wide = max(es, et, w_sil)
+        L_lo, L_hi = 0.0, rho_lo * wide
+        B_lo, B_hi = 0.0, rho_lo * wide
     # a tapering bow hides part of itself. Off-axis angle of the sensor seen from the
     # hull, 0 end-on: below a_lo the bow's V faces are both seen from ahead and hidden
     # from aft; above a_hi the near V face is seen from aft and the far flank hidden
@@ -272,7 +281,8 @@ def hull_box_kernel(points, offsets, origin, heading, heading_std, shadow, prm, 
     0: a silhouette edge). ``prm`` = [range_std, bearing_std, angular_step (0: from the
     cluster), rho_min, rho_max, k_tip, orientation_std, floor_std, k_gap, taper,
     taper_angle_lo, taper_angle_hi, kappa (persistence of the unseen-depth error, scans),
-    max_hidden (most of a hull taken to hide behind an occluder, m)].
+    max_hidden (most of a hull taken to hide behind an occluder, m), ray_step (the scan's
+    ray spacing, rad; 0: unknown)].
     """
     k = offsets.shape[0] - 1
     z = np.full((k, 2), np.nan)

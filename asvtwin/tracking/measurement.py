@@ -271,11 +271,12 @@ class LidarMeasurements:
         return int(self.z.shape[0])
 
 
-def _hull_prm(mdl: LidarModel) -> _F8:
+def _hull_prm(mdl: LidarModel, clusters: Clusters | None = None) -> _F8:
+    step = np.nan if clusters is None else float(clusters.ray_step_rad)
     return np.array([mdl.range_std_m, mdl.bearing_std_rad, mdl.angular_step_rad, mdl.length_beam_ratio[0],
                      mdl.length_beam_ratio[1], mdl.tip_gap_rays, mdl.orientation_std_rad, mdl.centre_floor_m,
                      mdl.gap_factor, mdl.bow_taper, mdl.taper_angles_rad[0], mdl.taper_angles_rad[1],
-                     mdl.depth_persistence, mdl.max_hidden_m])
+                     mdl.depth_persistence, mdl.max_hidden_m, step if np.isfinite(step) and step > 0.0 else 0.0])
 
 
 def _end_shadows(clusters: Clusters) -> _F8:
@@ -318,7 +319,7 @@ def hull_centres(clusters: Clusters, heading_rad: ArrayLike, heading_std_rad: Ar
         raise StateError("hull-centre measurements need the sensor position (Clusters.origin_ned), actually: NaN")
     points = np.ascontiguousarray(clusters.points, dtype=np.float64).reshape(-1, 2)
     offsets = np.ascontiguousarray(clusters.offsets, dtype=np.int64)
-    z, R, ext, _ = hull_box_kernel(points, offsets, origin, h, hs, _end_shadows(clusters), _hull_prm(mdl),
+    z, R, ext, _ = hull_box_kernel(points, offsets, origin, h, hs, _end_shadows(clusters), _hull_prm(mdl, clusters),
                                    only_known)
     return z, R, ext
 
@@ -344,7 +345,7 @@ def hull_centres_for_pairs(clusters: Clusters, cols: NDArray[np.int64], heading_
     origin = np.asarray(clusters.origin_ned, dtype=np.float64).reshape(2)
     h = np.array(heading_rad, np.float64).reshape(cols.size)
     hs = np.maximum(np.asarray(heading_std_rad, np.float64).reshape(cols.size), mdl.heading_floor_rad)
-    z, Ru, _, R = hull_box_pairs_kernel(points, offsets, origin, cols, h, hs, _end_shadows(clusters), _hull_prm(mdl))
+    z, Ru, _, R = hull_box_pairs_kernel(points, offsets, origin, cols, h, hs, _end_shadows(clusters), _hull_prm(mdl, clusters))
     return z, Ru, R
 
 
@@ -383,7 +384,7 @@ def lidar_measurements(clusters: Clusters, model: LidarModel | None = None) -> L
     if mdl.centre == "hull_box" and len(z):
         k = len(z)
         z, Rf, ext, R = hull_box_kernel(points, offsets, origin, np.full(k, np.nan), np.zeros(k),
-                                        _end_shadows(clusters), _hull_prm(mdl), False)
+                                        _end_shadows(clusters), _hull_prm(mdl, clusters), False)
         return LidarMeasurements(z=z, R=R, fits=EllipseFits.from_array(out), used_fit=use, extent_m=ext,
                                  R_update=Rf)
     return LidarMeasurements(z=z, R=R, fits=EllipseFits.from_array(out), used_fit=use, extent_m=ext)

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
+from dataclasses import replace
 from types import MappingProxyType
 
 import numpy as np
@@ -50,6 +51,7 @@ from asvtwin.tracking.measurement import (
     AisMeasurement,
     AisMeasurementBatch,
     LidarMeasurements,
+    LidarModel,
     _end_shadows,
     _hull_prm,
     ais_measurements,
@@ -103,6 +105,8 @@ class Tracker:
         self._gA_id = gate_threshold(self.config.identity_gate_probability, 2)
         self._pairs: dict[tuple[int, int], int] = {}
         self._t: float | None = None
+        self._t_scan: float | None = None  # time of the last scan (the persistence's Δt)
+        self._models: dict[float, LidarModel] = {}
         self._next_id = 1
         self._a: dict[str, np.ndarray] = {k: np.empty((0, *s), d) for k, (s, d, _) in _FIELDS.items()}
         self._counts: dict[str, int] = dict.fromkeys((
@@ -208,11 +212,12 @@ class Tracker:
             self._count("invalid_points", cl.n_invalid, "non-finite LiDAR returns dropped")
             self._count("small_clusters", cl.n_small)
             self._count("clusters", len(cl))
+            mdl = self._scan_model(t)
             if len(cl):
-                m = lidar_measurements(cl, cfg.lidar)
+                m = lidar_measurements(cl, mdl)
                 self._count("fit_fallbacks", int((~m.used_fit).sum()))
                 cost = gated_costs(a["x"][:, :2], a["P"][:, :2, :2], m.z, m.R, self._gL)[0]
-                ti, cj, zp, Rp, Rpu, with_course = self._pair_measurements(cl, cost, m)
+                ti, cj, zp, Rp, Rpu, with_course = self._pair_measurements(cl, cost, m, mdl)
                 self._ais_identity_gate(t, cost, ti, cj, zp, Rp)
                 rows, cols = gnn_assign(cost)
                 a["gotL"][rows] = True
@@ -303,7 +308,15 @@ class Tracker:
 
         # 5. confirmation, 6. deleter
         hits_in_window = np.bitwise_count(a["hist"]).astype(np.int64)
-        newly = ~a["confirmed"] & ((hits_in_window >= cfg.confirm_m) | (a["n_ais"] >= 2))
+        settled = a["mmsi"] >= 0
+        if np.isfinite(cfg.confirm_velocity_std_m_s):  # LiDAR-only: the velocity must have settled
+            Pv = a["P"][:, 2:, 2:]
+            tr, det = Pv[:, 0, 0] + Pv[:, 1, 1], Pv[:, 0, 0] * Pv[:, 1, 1] - Pv[:, 0, 1] ** 2
+            settled = settled | (0.5 * tr + np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
+                                 <= cfg.confirm_velocity_std_m_s ** 2)
+        else:
+            settled = np.ones_like(settled)
+        newly = ~a["confirmed"] & (((hits_in_window >= cfg.confirm_m) & settled) | (a["n_ais"] >= 2))
         a["confirmed"] |= newly
         self._count("tracks_confirmed", int(newly.sum()))
         self._delete(t, hits_in_window)
@@ -402,7 +415,24 @@ class Tracker:
             cost[r[bad], cj[sel][bad]] = FORBIDDEN
             self._count("lidar_vetoed_by_ais", int(bad.sum()))
 
-    def _pair_measurements(self, cl: Clusters, cost: _F8, m: LidarMeasurements) -> tuple[
+    def _scan_model(self, t: float) -> LidarModel:
+        """The LiDAR model of this scan: ``depth_persistence`` in scans from
+        ``TrackerConfig.depth_persistence_s`` and the time since the previous scan (the
+        persistent part of the error spans more scans at a higher rate)."""
+        cfg = self.config
+        dt, self._t_scan = (None if self._t_scan is None else t - self._t_scan), t
+        tau = cfg.depth_persistence_s
+        if tau is None or dt is None or not dt > 0.0:
+            return cfg.lidar
+        kappa = round(max(1.0, tau / dt), 6)
+        mdl = self._models.get(kappa)
+        if mdl is None:
+            if len(self._models) > 64:
+                self._models.clear()
+            mdl = self._models[kappa] = replace(cfg.lidar, depth_persistence=kappa)
+        return mdl
+
+    def _pair_measurements(self, cl: Clusters, cost: _F8, m: LidarMeasurements, mdl: LidarModel) -> tuple[
             NDArray[np.int64], NDArray[np.int64], _F8, _F8, _F8, NDArray[np.bool_]]:
         """The measurement of every gated (track, cluster) pair, and the pair's cost again.
 
@@ -418,15 +448,15 @@ class Tracker:
         ``R_update`` (the filter) and whether the course was used; ``cost`` is updated in
         place (pairs that leave the gate become :data:`FORBIDDEN`).
         """
-        a, cfg, mdl = self._a, self.config, self.config.lidar
+        a, cfg = self._a, self.config
         use_course = mdl.centre == "hull_box" and bool(np.isfinite(cl.origin_ned).all())
         # (clusters without the sensor position keep the fitted centre)
         return pair_measurements(
             cost, a["x"], a["P"], m.z, m.R, m.R if m.R_update is None else m.R_update, use_course,
             np.ascontiguousarray(cl.points, dtype=np.float64).reshape(-1, 2),
             np.ascontiguousarray(cl.offsets, dtype=np.int64), np.asarray(cl.origin_ned, dtype=np.float64).reshape(2),
-            _end_shadows(cl), _hull_prm(mdl), mdl.heading_floor_rad, cfg.course_min_speed_m_s ** 2,
-            cfg.course_max_std_rad ** 2, self._gL, FORBIDDEN)
+            _end_shadows(cl), _hull_prm(mdl, cl), mdl.heading_floor_rad, cfg.course_min_speed_m_s ** 2,
+            cfg.course_max_std_rad ** 2, self._gL, FORBIDDEN, cfg.course_min_returns)
 
     def _update_sensor_filters(self, zL: _F8, RL: _F8, zA: _F8, RA: _F8) -> None:
         a, t = self._a, self._t

@@ -118,10 +118,11 @@ def coincident(x, P, mmsi, gamma):  # type: ignore[no-untyped-def]
 
 @njit(cache=True)
 def pair_measurements(cost, x, P, z0, R0, Ru0, use_course, points, offsets, origin, shadow, prm, heading_floor,
-                      min_speed2, max_course_var, gamma, forbidden):  # type: ignore[no-untyped-def]
+                      min_speed2, max_course_var, gamma, forbidden, min_returns=1):  # type: ignore[no-untyped-def]
     """The measurement of every gated (track, cluster) pair (``cost < forbidden``, in
     ``np.nonzero`` order), measured again with the track's course where it has one
-    (speed² ≥ ``min_speed2``, course variance ≤ ``max_course_var``) and re-gated with it;
+    (speed² ≥ ``min_speed2``, course variance ≤ ``max_course_var``; clusters of at least
+    ``min_returns`` returns) and re-gated with it;
     ``cost`` is updated in place (:meth:`asvtwin.tracking.tracker.Tracker._pair_measurements`
     says why). Returns ``ti, cj, z, R (single scan), R_update, with_course``."""
     n, k = cost.shape
@@ -146,7 +147,7 @@ def pair_measurements(cost, x, P, z0, R0, Ru0, use_course, points, offsets, orig
             zp[p] = z0[j]
             Rp[p] = R0[j]
             Rpu[p] = Ru0[j]
-            if use_course:
+            if use_course and offsets[j + 1] - offsets[j] >= min_returns:
                 v0, v1 = x[i, 2], x[i, 3]
                 sp2 = v0 * v0 + v1 * v1
                 # var ψ = (v_e² P_nn − 2 v_n v_e P_ne + v_n² P_ee) / |v|⁴ (course of the CV velocity)
