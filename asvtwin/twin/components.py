@@ -62,9 +62,10 @@ def tracker_config(own_length_m: float, full_scale_m: float) -> TrackerConfig:
     an acceleration is unchanged and a spectral density [m²/s³] scales by √s. Unscaled, a
     model target's 25 s prediction grew a clearance circle of about 20 m (70 m for a new
     track) around a 1.3 m hull, and the model-scale crossing fell back on 113 of 400
-    filter calls. Scaled: q and the AIS report ageing q × √s, velocity σs × √s, lengths
-    (AIS position σ, as the twin's transponders are scaled, track separation, merge
-    distance, deletion σ) × s. The sensor models (LiDAR, clustering) are the scenario's
+    filter calls. Scaled: q and the AIS report ageing q × √s, velocity σs (a new track's
+    prior, and the bound a LiDAR-only track's σ must settle below before it is confirmed)
+    × √s, lengths (AIS position σ, as the twin's transponders are scaled, track
+    separation, merge distance, deletion σ) × s. The sensor models (LiDAR, clustering) are the scenario's
     and the chart's error a property of the chart; reporting intervals and coasting times
     are real seconds. None of these change."""
     s = min(1.0, float(own_length_m) / float(full_scale_m))
@@ -77,6 +78,7 @@ def tracker_config(own_length_m: float, full_scale_m: float) -> TrackerConfig:
                               accel_q=cfg.ais.accel_q * r)
     return dataclasses.replace(
         cfg, q=cfg.q * r, init_velocity_std_m_s=cfg.init_velocity_std_m_s * r,
+        confirm_velocity_std_m_s=cfg.confirm_velocity_std_m_s * r,
         course_min_speed_m_s=cfg.course_min_speed_m_s * r,
         max_position_std_m=cfg.max_position_std_m * s,
         min_separation_m=cfg.min_separation_m * s, merge_distance_m=cfg.merge_distance_m * s,

@@ -25,6 +25,7 @@ def test_model_scale_scales_motion_and_lengths_not_sensors():
     cfg, d = tracker_config(1.255, FULL), TrackerConfig()
     assert cfg.q == pytest.approx(d.q * math.sqrt(s))
     assert cfg.init_velocity_std_m_s == pytest.approx(d.init_velocity_std_m_s * math.sqrt(s))
+    assert cfg.confirm_velocity_std_m_s == pytest.approx(d.confirm_velocity_std_m_s * math.sqrt(s))
     assert cfg.min_separation_m == pytest.approx(d.min_separation_m * s)
     assert cfg.ais.position_std_m == pytest.approx(d.ais.position_std_m * s)
     # sensor models and the chart's error are the scenario's / the chart's
