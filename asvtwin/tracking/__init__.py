@@ -57,6 +57,7 @@ from asvtwin.tracking.measurement import (
 from asvtwin.tracking.metrics import (
     GospaResult,
     assign_tracks,
+    effective_sample_size,
     false_tracks,
     gospa,
     nees,
@@ -119,6 +120,7 @@ __all__ = [
     "cv_predict",
     "cv_process_noise",
     "cv_transition",
+    "effective_sample_size",
     "false_tracks",
     "fit_ellipse",
     "fit_ellipses",
