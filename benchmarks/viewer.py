@@ -13,7 +13,9 @@
   and the browser's CPU time per presented frame (all its processes, from /proc): on a
   loaded machine the wall time is mostly waiting for a core, the CPU time is not, so
   ``2 cores x 1000 / viewer_cpu_ms_per_frame_*`` bounds the frame rate a quiet 2-core
-  machine could reach. When llvmpipe is used, the same is measured with SwiftShader
+  machine could reach. ``main_thread_ms_per_s`` in each phase is the page's own
+  JavaScript time per second by part (snapshot parsing, target derivation, chart and 3-D
+  updates, 3-D render calls, table, status panel). When llvmpipe is used, the same is measured with SwiftShader
   (``viewer_swiftshader``) right after, for comparison.
 - ``ws_clients_held``: the most concurrent WebSocket clients at 10 Hz (of 5, 10, 20, 30,
   40) for which the feed loop's median tick time stayed within 10 % of the no-client
@@ -109,7 +111,7 @@ def clients_held(levels=(5, 10, 20, 30, 40), hold_s: float = 6.0) -> dict[str, o
 # are drawn as they come. Resolves with the page's own counters over `ms`.
 _DRIVE = """([view, ms]) => new Promise((resolve) => {
     const V = asvtwinViewer, c0 = V.chart.renders, u0 = V.chart.updates, r0 = V.view3d.frames,
-          s0 = V.snapshots, t0 = performance.now();
+          s0 = V.snapshots, t0 = performance.now(), ms0 = {...V.ms};
     let raf = 0, k = 0;
     const f = (now) => {
         raf++;
@@ -119,7 +121,9 @@ _DRIVE = """([view, ms]) => new Promise((resolve) => {
         else { const s = (now - t0) / 1000;
             resolve({s, raf: raf / s, chart_renders: (V.chart.renders - c0) / s,
                      chart_updates: (V.chart.updates - u0) / s, renders_3d: (V.view3d.frames - r0) / s,
-                     snapshots: (V.snapshots - s0) / s, targets: V.targets, errors: V.errors}); } };
+                     snapshots: (V.snapshots - s0) / s, targets: V.targets, errors: V.errors,
+                     main_thread_ms_per_s: Object.fromEntries(Object.entries(V.ms).map(
+                         ([k, v]) => [k, Math.round((v - ms0[k]) / s * 10) / 10]))}); } };
     requestAnimationFrame(f); })"""
 
 

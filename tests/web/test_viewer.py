@@ -174,13 +174,14 @@ def test_targets_are_drawn_where_maplibre_projects_them(live):
             img = np.asarray(Image.open(io.BytesIO(img)).convert("RGB")).astype(int)
             inside = [(x, y) for x, y in st["pts"] if 12 < x < st["w"] - 12 and 12 < y < st["h"] - 12]
             assert len(inside) >= 3, st
-            # a symbol's stroke (near-black, red or grey) within 6 px of the projected point
+            # a symbol's stroke (black, red, or grey when lost) within 8 px of the projected
+            # point (a LiDAR-only track's circle has a radius of 5.7 px)
             hit = 0
             for x, y in inside:
-                box = img[int(y) - 6:int(y) + 7, int(x) - 6:int(x) + 7]
-                dark = (box.max(axis=2) < 80).sum()
-                red = (np.abs(box - np.array([224, 20, 30])).max(axis=2) < 40).sum()
-                hit += (dark + red) >= 3
+                box = img[int(y) - 8:int(y) + 9, int(x) - 8:int(x) + 9]
+                grey = (box.max(axis=2) < 140) & (box.max(axis=2) - box.min(axis=2) < 40)
+                red = np.abs(box - np.array([224, 20, 30])).max(axis=2) < 40
+                hit += (grey | red).sum() >= 3
             assert hit >= 0.9 * len(inside), (hit, len(inside), orient)
             # names: the nearest 20 and the dangerous ones, not all 24 targets on top of each other
             assert st["zoom"] >= 11.5 and 1 <= st["labels"] <= 20 + viewer(page)["table"]["dangerous"]

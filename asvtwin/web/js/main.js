@@ -19,7 +19,11 @@ const headers = { 'content-type': 'application/json', ...(token ? { 'x-asvtwin-t
 const V = window.asvtwinViewer = {
   ready: false, snapshots: 0, lastSeq: null, bytes: 0, errors: [], events: [],
   controls: {}, lastControl: null, conn: { connected: false, rateHz, bytes: 0 }, info: null,
+  // main-thread time spent per part [ms, summed since the page opened] (the benchmark reads it)
+  ms: { parse: 0, derive: 0, chart: 0, view3d: 0, render3d: 0, table: 0, status: 0 },
 };
+// run f, adding its duration to V.ms[key]
+const timed = (key, f) => { const t0 = performance.now(); const r = f(); V.ms[key] += performance.now() - t0; return r; };
 window.addEventListener('error', (e) => V.errors.push(String(e.message)));
 window.addEventListener('unhandledrejection', (e) => V.errors.push(String(e.reason)));
 
@@ -206,7 +210,7 @@ async function main() {
         return;
       }
       V.conn.bytes = ev.data.byteLength;
-      latest = JSON.parse(dec.decode(ev.data));
+      latest = timed('parse', () => JSON.parse(dec.decode(ev.data)));
       V.snapshots += 1; V.lastSeq = latest.seq; V.latest = latest;
       fresh = true;
       requestFrame();
@@ -224,24 +228,24 @@ async function main() {
     slowTimer = null;
     if (!latest) return;
     lastSlow = performance.now();
-    table.render(targets);
+    timed('table', () => table.render(targets));
     setText($('target-count'), `(${targets.length}, ${table.stats.dangerous} dangerous)`);
-    renderStatus($('status'), latest, V.conn);
+    timed('status', () => renderStatus($('status'), latest, V.conn));
   };
   const drawFrame = () => {
     frameAsked = false;
     if (latest && fresh) {
       fresh = false;
-      targets = deriveTargets(latest, limits);
+      targets = timed('derive', () => deriveTargets(latest, limits));
       V.targets = targets.length;
-      chart.update(latest, targets);
-      view.update(latest, targets);
+      timed('chart', () => chart.update(latest, targets));
+      timed('view3d', () => view.update(latest, targets));
       setText($('clock'), `t = ${latest.t_s.toFixed(1)} s${isPaused() ? ' (paused)' : ''}`);
       setText($('btn-pause'), isPaused() ? 'Resume' : 'Pause');
       if (replay && !seeking) { $('seek').value = String(latest.t_s); $('seek-label').textContent = `${latest.t_s.toFixed(1)} / ${info.duration_s.toFixed(1)} s`; }
       if (slowTimer === null) slowTimer = setTimeout(slow, Math.max(0, 500 - (performance.now() - lastSlow)));
     }
-    view.render();
+    timed('render3d', () => view.render());
   };
   requestFrame = () => { if (!frameAsked) { frameAsked = true; requestAnimationFrame(drawFrame); } };
   view.onDirty = requestFrame;
