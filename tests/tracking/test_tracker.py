@@ -115,8 +115,26 @@ def test_bad_input_is_counted_never_a_crash_never_a_nan() -> None:
     assert np.isfinite(s.mean).all()
 
 
+def test_lidar_only_confirmation_waits_for_a_settled_velocity() -> None:
+    """3 hits of 5 are not enough without AIS: the track is confirmed only once its
+    velocity σ is at most ``confirm_velocity_std_m_s`` (not with the 8 m/s prior, whose
+    prediction would be kilometres wide at a safety filter's horizon)."""
+    tr = Tracker(TrackerConfig(confirm_m=3, confirm_n=5))
+    rng = np.random.default_rng(0)
+    first = None
+    for k in range(30):
+        s = tr.step(float(k), Clusters.from_list([np.array([100.0 + k, 0.0]) + rng.normal(0, 0.5, (12, 2))]))
+        vsd = float(np.sqrt(np.linalg.eigvalsh(s.cov[0, 2:, 2:])[-1]))
+        if s.status[0] == "confirmed" and first is None:
+            first = k
+            assert vsd <= 1.0
+        if first is None:
+            assert s.status == ("tentative",) and (k < 2 or vsd > 1.0)
+    assert first is not None and first > 2
+
+
 def test_m_of_n_confirmation_and_deletion_after_coasting() -> None:
-    cfg = TrackerConfig(confirm_m=3, confirm_n=5, max_coast_s=5.0)
+    cfg = TrackerConfig(confirm_m=3, confirm_n=5, max_coast_s=5.0, confirm_velocity_std_m_s=float("inf"))
     tr = Tracker(cfg)
     blob = lambda c: Clusters.from_list([np.array(c) + np.random.default_rng(0).normal(0, 0.5, (12, 2))])
     statuses = [tr.step(float(k), blob([100.0 + k, 0.0])).status for k in range(3)]
