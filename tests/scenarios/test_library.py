@@ -177,29 +177,25 @@ def test_model_scale_crossing_gives_way_and_completes_its_route():
     assert summary.max_cte_m < 10.0, text  # 8 L: it gives way to starboard, then returns
 
 
-#: Library scenarios measured to miss one criterion with the committed twin, and why (see
-#: docs/scenarios.md, "Rule 17, the bounded intercept angle and near-leg switching"):
-#: name -> (the criterion missed, reason). Pinned as strict expected failures of the full
-#: run: each must miss only that criterion, with no contact; a fix turns the xfail into a
-#: failure, to be updated here.
+#: Library scenarios measured to miss one criterion with the twin's guidance as it stands
+#: (docs/scenarios.md: the studies of 2026-11-30, and why the twin does not use the
+#: 2026-12-01 options): name -> (the criterion missed, reason). Pinned as strict expected
+#: failures of the full run: each must miss only that criterion, with no contact; a fix
+#: turns the xfail into a failure, to be updated here.
 KNOWN_MISSES = {
     "multi_vessel": ("goal_reached",
-                     ("route not completed: after giving way 1.07 km east the return at 45° "
-                     "is held back by the safety filter (fallbacks at plan stages 44-50 "
-                     "against the tracks' grown clearance circles, 660-1240 s); back on its "
-                     "track at 1340 s, 1.3 km short of the goal (2026-12-01)")),
+                     ("route not completed: after giving way ~1 km east the LOS return "
+                     "runs along a faster vessel's wake and the safety filter holds the "
+                     "ship behind its grown clearance circles (fallbacks from ~660 s); "
+                     "1.2 km short of the goal at the end (2026-11-30, and 2026-12-01 with a "
+                     "45° bounded return)")),
     "trondheim_harbour_approach": (
-        "min_distance_land",
-        ("route completed (wp 4 by 1800 s), but 68.5 m from Munkholmen's north shore "
-        "(criterion 88 m) at t = 990-1000 s: u_L's stand-on and overtaking offsets for the "
-        "two small craft turned it towards the island and the filter's turn_port fallbacks "
-        "against their clearance circles drove it there at up to 3.6 m/s (2026-12-01)")),
-    "trondheim_ferry_crossing": (
         "goal_reached",
-        ("a regression of the 2026-12-01 guidance: pushed 1067 m north of its track by the "
-        "filter (stand-on for the ferry), the ship returns at 45° and passes abeam of the "
-        "route's end still ~300 m off it; the along-track test no longer ends the route "
-        "that far off, so it is not done by 1600 s (it passed on 2026-11-30)")),
+        ("quay approach not reached: the outbound liner (crossing_stand_on) never gives "
+        "way, the filter pushes the own ship west of Munkholmen, and the route monitor's "
+        "along-track test switches to the next leg 800 m off the leg, so the ship goes round "
+        "Munkholmen's west side (coast 114 m, above 88) and does not reach the quay "
+        "(2026-11-30)")),
 }
 
 
