@@ -33,6 +33,7 @@ import json
 import logging
 import os
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
@@ -318,6 +319,7 @@ def plot_training(rows: Sequence[dict[str, Any]], *, window: int = 100) -> Any:
     episodes) against training steps; one colour per setup, mean over seeds, seeds' range
     shaded. Returns a matplotlib Figure."""
     from matplotlib.figure import Figure
+    from matplotlib.ticker import FuncFormatter
 
     fig = Figure(figsize=(13, 3.8), layout="constrained")
     axes = fig.subplots(1, 3)
@@ -341,10 +343,12 @@ def plot_training(rows: Sequence[dict[str, Any]], *, window: int = 100) -> Any:
                 ys = _rolling(np.array([float(r[key]) for r in rs]), window)
                 curves.append(np.interp(grid, xs, ys, left=np.nan))
             arr = np.array(curves)
-            with np.errstate(all="ignore"):
+            with warnings.catch_warnings():  # a grid point before any seed's first episode
+                warnings.simplefilter("ignore", RuntimeWarning)
                 ax.plot(grid, np.nanmean(arr, axis=0), color=colour, label=names[setup])
                 ax.fill_between(grid, np.nanmin(arr, axis=0), np.nanmax(arr, axis=0),
                                 color=colour, alpha=0.2, lw=0)
+            ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v / 1000:g}k"))
             ax.set_xlabel("training steps")
             ax.set_ylabel(label)
     axes[0].legend(loc="lower right", fontsize=8)

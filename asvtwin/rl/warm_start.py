@@ -82,4 +82,4 @@ def clone_into(model: Any, obs: NDArray[np.float32], act: NDArray[np.float32], *
             opt.zero_grad()
             loss.backward()
             opt.step()
-    return float(loss)
+    return float(loss.detach())
