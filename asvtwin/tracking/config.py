@@ -32,10 +32,13 @@ class TrackerConfig:
         M-of-N confirmation (1 <= M <= N <= 30).
     confirm_velocity_std_m_s : float
         ... and, for a track without AIS, only once its largest velocity standard
-        deviation is below this [m/s] (inf: M-of-N alone). A confirmed track is handed to
-        the safety filter as a moving obstacle; one still carrying the initial velocity
-        prior (``init_velocity_std_m_s``) would be a clearance circle kilometres wide at
-        the end of its horizon.
+        deviation is below this [m/s] (inf, the default: M-of-N alone). A confirmed track
+        is handed to the safety filter as a moving obstacle; one still carrying the initial
+        velocity prior (``init_velocity_std_m_s``) is a clearance circle kilometres wide at
+        the end of its horizon, but a bound here (e.g. 1 m/s) keeps a new LiDAR-only
+        object from the filter until it settles: in the model-scale crossing the first
+        confirmed track came at 3.0 s instead of 0.2 s, and the dense twin scene's
+        fallbacks did not drop (63 %), so it is off by default.
     max_coast_s, max_coast_ais_s : float
         Deletion after this long without an update [s] (without / with an MMSI tie).
     max_position_std_m : float
@@ -104,7 +107,7 @@ class TrackerConfig:
     tied_gate_probability: float = 0.999999
     confirm_m: int = 3
     confirm_n: int = 5
-    confirm_velocity_std_m_s: float = 1.0
+    confirm_velocity_std_m_s: float = float("inf")
     max_coast_s: float = 15.0
     max_coast_ais_s: float = 180.0
     max_position_std_m: float = 150.0

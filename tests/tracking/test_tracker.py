@@ -118,8 +118,9 @@ def test_bad_input_is_counted_never_a_crash_never_a_nan() -> None:
 def test_lidar_only_confirmation_waits_for_a_settled_velocity() -> None:
     """3 hits of 5 are not enough without AIS: the track is confirmed only once its
     velocity σ is at most ``confirm_velocity_std_m_s`` (not with the 8 m/s prior, whose
-    prediction would be kilometres wide at a safety filter's horizon)."""
-    tr = Tracker(TrackerConfig(confirm_m=3, confirm_n=5))
+    prediction would be kilometres wide at a safety filter's horizon). An option, off by
+    default (it delays the first confirmed track: see TrackerConfig)."""
+    tr = Tracker(TrackerConfig(confirm_m=3, confirm_n=5, confirm_velocity_std_m_s=1.0))
     rng = np.random.default_rng(0)
     first = None
     for k in range(30):
