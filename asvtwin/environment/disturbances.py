@@ -259,18 +259,16 @@ class Environment:
         (ac, sc, dc), (aw, sw, dw), (az, sz, dz) = coeffs
         k = 2 * dc + 2 * dw + dz
         xi = rng.standard_normal(k).tolist() if k else []
-        b = state._b_current
-        if dc:
-            bc = np.array([ac * b[0] + sc * xi[0], ac * b[1] + sc * xi[1]])
-            xi = xi[2:]
-        else:
-            bc = b * ac
-        b = state._b_wind
-        if dw:
-            bw = np.array([aw * b[0] + sw * xi[0], aw * b[1] + sw * xi[1]])
-            xi = xi[2:]
-        else:
-            bw = b * aw
+
+        def step2(b: NDArray[np.float64], a: float, sig: float, drawn: bool
+                  ) -> NDArray[np.float64]:
+            if not drawn:
+                return b * a
+            e0, e1 = xi.pop(0), xi.pop(0)
+            return np.array([a * b[0] + sig * e0, a * b[1] + sig * e1])
+
+        bc = step2(state._b_current, ac, sc, dc)
+        bw = step2(state._b_wind, aw, sw, dw)
         bz = az * state._b_wave + sz * xi[0] if dz else state._b_wave * az
         return self._state(state.t_s + dt_s, bc, bw, float(bz))
 
