@@ -137,17 +137,20 @@ class GiveWay:
                                  f"actually: {v!r}")
 
     @classmethod
-    def for_length(cls, length_m: float) -> GiveWay:
+    def for_length(cls, length_m: float, *, stand_on_action: bool = False) -> GiveWay:
         """Settings for a hull of ``length_m`` [m]: pass at 6 ship lengths (527 m for the
         88 m supply vessel, the clearance the safety filter's track circles reach about
-        three minutes ahead), look 10 minutes ahead at 88 m, and as the stand-on vessel act
-        at 5 minutes to the CPA (rule 17(a)(ii)) when the give-way vessel has not altered
-        by 10°; times Froude-scaled (× √λ, λ = L / 88 m)."""
+        three minutes ahead), look 10 minutes ahead at 88 m, and, with
+        ``stand_on_action``, as the stand-on vessel act at 5 minutes to the CPA (rule
+        17(a)(ii)) when the give-way vessel has not altered by 10° (off by default: the
+        twin's library runs of 2026-12-01 came closer to land with it); times
+        Froude-scaled (× √λ, λ = L / 88 m)."""
         if not (math.isfinite(length_m) and length_m > 0):
             raise ParameterError(f"length_m must be finite and > 0, actually: {length_m!r}")
         sq = math.sqrt(length_m / 88.0)
         return cls(pass_distance_m=6.0 * length_m, tcpa_limit_s=600.0 * sq,
-                   min_speed_m_s=0.25 * sq, stand_on_tcpa_s=300.0 * sq)
+                   min_speed_m_s=0.25 * sq,
+                   stand_on_tcpa_s=300.0 * sq if stand_on_action else None)
 
     def reset(self) -> None:
         """Forget every target (no manoeuvre in progress)."""

@@ -22,7 +22,6 @@ and the thrusters.
 
 from __future__ import annotations
 
-import dataclasses
 import importlib
 import math
 from collections.abc import Callable
@@ -135,7 +134,7 @@ class LosController:
     turns the LOS course to starboard for a vessel the own ship must keep out of the way
     of (rules 13-15) and lets LOS bring it back to the route once that vessel is passed.
     As the stand-on vessel it stands on (rule 17(a)(i)); the stand-on action of rule
-    17(a)(ii) (``GiveWay.stand_on_tcpa_s``) is off here: with it the harbour approach's
+    17(a)(ii) (``GiveWay.for_length(..., stand_on_action=True)``) is off here: with it the harbour approach's
     full run turned towards Munkholmen and came to 68.5 m of land (2026-12-01).
     """
 
@@ -148,8 +147,7 @@ class LosController:
         self.acceptance_radius_m = spec.acceptance_radius
         self.autopilot = HeadingSpeedAutopilot(params)
         self.monitor = RouteMonitor(self.lookahead_m, self.acceptance_radius_m)
-        self.give_way = dataclasses.replace(GiveWay.for_length(params.length),
-                                            stand_on_tcpa_s=None)
+        self.give_way = GiveWay.for_length(params.length)
         self._traffic: tuple[NDArray[np.int64], _F8, _F8] | None = None
         # the give-way decision once a second at full scale (Froude-scaled), held between:
         # encounters change over minutes, and deciding at the controller's 10 Hz cost

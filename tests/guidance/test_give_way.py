@@ -50,7 +50,7 @@ def test_stand_on_vessel_acts_to_starboard_when_the_give_way_vessel_does_not():
     while it holds its course and the TCPA is above stand_on_tcpa_s the own ship stands
     on; at or below it, the own ship alters to starboard (never to port). A give-way
     vessel that has altered by 10° or more is left to its own manoeuvre."""
-    gw = GiveWay.for_length(87.85)
+    gw = GiveWay.for_length(87.85, stand_on_action=True)
     assert gw.stand_on_tcpa_s == pytest.approx(300.0 * math.sqrt(87.85 / 88.0))
     v = np.array([[0.0, 2.57]])
 
@@ -188,7 +188,7 @@ def test_closed_loop_stand_on_acts_when_the_crossing_vessel_holds_on(params):
         los = LosGuidance(route, lookahead_m=2.5 * L, acceptance_radius_m=2.0 * L,
                           max_intercept_rad=math.radians(45.0), switch_cte_m=2.0 * L)
         ap = HeadingSpeedAutopilot(params)
-        gw = GiveWay.for_length(L)
+        gw = GiveWay.for_length(L, stand_on_action=True)
         if not act:
             gw.stand_on_tcpa_s = None
         sim = BatchSimulator([params], np.array([[0.0, 0.0, 0.0, u, 0.0, 0.0]]), dt_s=dt)
