@@ -110,6 +110,12 @@ def hull_polygons(
     pose = target_poses(states)
     n = pose.shape[0]
     L, B = _check_dims(length_m, beam_m, n)
+    return _polygons(pose, L, B, shape=shape, bow_fraction=bow_fraction, n_vertices=n_vertices)
+
+
+def _polygons(pose: _F8, L: _F8, B: _F8, *, shape: str, bow_fraction: float,
+              n_vertices: int) -> _F8:
+    """:func:`hull_polygons` of checked poses (n, 3) and dimensions (n,)."""
     if shape == "pointed":
         if not 0.0 < bow_fraction < 1.0:
             raise ParameterError(f"bow_fraction must be in (0, 1), actually: {bow_fraction!r}")

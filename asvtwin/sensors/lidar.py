@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
 from asvtwin.geo.land import LandMask
-from asvtwin.sensors.hull import HULL_SHAPES, hull_polygons, hull_segments, target_poses
+from asvtwin.sensors.hull import HULL_SHAPES, _check_dims, _polygons, hull_segments, target_poses
 
 __all__ = ["HIT_COAST", "HIT_NONE", "Lidar", "LidarConfig", "LidarScan"]
 
@@ -66,6 +66,51 @@ def _cast_hulls(on, oe, cosa, sina, rmax, segs, centres, radii):  # type: ignore
                     best[r] = t
                     who[r] = k
     return best, who
+
+
+@njit(cache=True)
+def _finish_scan(on, oe, c, s, rng_t, who, coast, noise, dropped, min_range):  # type: ignore[no-untyped-def]
+    """The returns of one scan from the hulls' first hits ``rng_t``/``who``, the coast's
+    ranges ``coast`` (empty: no coast) and the draws: (ranges, hit, points, hit_id).
+
+    The same operations, element by element, as the NumPy expressions they replace
+    (nearer coast wins; a return is finite, at least ``min_range`` and not dropped; its
+    range is ``max(r + noise, 0)``; its point ``o + range * (cos, sin)`` of the nominal
+    bearing), so the numbers are the same to the bit."""
+    m = rng_t.shape[0]
+    ranges = np.empty(m)
+    hit = np.empty(m, np.bool_)
+    pts = np.empty((m, 2))
+    out = np.empty(m, np.int64)
+    with_coast = coast.shape[0] == m
+    for i in range(m):
+        r = rng_t[i]
+        k = who[i]
+        if with_coast and coast[i] < r:
+            r = coast[i]
+            k = HIT_COAST
+        h = np.isfinite(r) and r >= min_range and not dropped[i]
+        hit[i] = h
+        if h:
+            v = r + noise[i]
+            v = max(v, 0.0)
+            ranges[i] = v
+            out[i] = k
+            pts[i, 0] = on + v * c[i]
+            pts[i, 1] = oe + v * s[i]
+        else:
+            ranges[i] = np.inf
+            out[i] = HIT_NONE
+            pts[i, 0] = np.nan
+            pts[i, 1] = np.nan
+    return ranges, hit, pts, out
+
+
+_NO_COAST = np.empty(0)
+
+#: Slack [m] of the range cull: a target whose bounding circle lies wholly beyond the
+#: maximum range plus this cannot return a ray, so its hull is not built at all.
+_CULL_SLACK_M = 1.0
 
 
 @dataclass(frozen=True)
@@ -246,25 +291,25 @@ class Lidar:
         who = np.full(m, HIT_NONE, np.int64)
         ts = np.asarray(target_states, dtype=np.float64)
         if ts.size:
-            polys = hull_polygons(ts, length_m, beam_m, shape=cfg.hull_shape)
-            segs = hull_segments(polys)
             pose = target_poses(ts)
-            radii = 0.5 * np.hypot(np.broadcast_to(length_m, (len(pose),)),
-                                   np.broadcast_to(beam_m, (len(pose),))) + 1e-6
-            rng_t, who = _cast_hulls(o[0], o[1], cosa, sina, cfg.max_range_m, segs,
-                                     np.ascontiguousarray(pose[:, :2]), np.asarray(radii, np.float64))
-        if land is not None:
-            coast = land.cast_rays(o, true_a, cfg.max_range_m)
-            nearer = coast < rng_t
-            rng_t = np.where(nearer, coast, rng_t)
-            who = np.where(nearer, HIT_COAST, who)
-
-        hit = np.isfinite(rng_t) & (rng_t >= cfg.min_range_m) & ~dropped
-        ranges = np.where(hit, np.maximum(rng_t + noise, 0.0), np.inf)
-        who = np.where(hit, who, HIT_NONE)
-        c, s = np.cos(nominal), np.sin(nominal)
-        with np.errstate(invalid="ignore"):
-            pts = np.where(hit[:, None], o + ranges[:, None] * np.column_stack([c, s]), np.nan)
+            L, B = _check_dims(length_m, beam_m, pose.shape[0])
+            radii = 0.5 * np.hypot(L, B) + 1e-6
+            # only the targets whose bounding circle reaches into range (the kernel would
+            # skip the others ray by ray; their hulls need not be built): same returns
+            near = np.flatnonzero(np.hypot(pose[:, 0] - o[0], pose[:, 1] - o[1]) - radii
+                                  <= cfg.max_range_m + _CULL_SLACK_M)
+            if near.size:
+                pn = pose[near]
+                segs = hull_segments(_polygons(pn, L[near], B[near], shape=cfg.hull_shape,
+                                               bow_fraction=0.2, n_vertices=24))
+                rng_t, w = _cast_hulls(o[0], o[1], cosa, sina, cfg.max_range_m, segs,
+                                       np.ascontiguousarray(pn[:, :2]), radii[near])
+                who = np.where(w >= 0, near[np.maximum(w, 0)], HIT_NONE)
+        coast = land.cast_rays(o, true_a, cfg.max_range_m) if land is not None else _NO_COAST
+        ranges, hit, pts, who = _finish_scan(
+            o[0], o[1], np.cos(nominal), np.sin(nominal), rng_t, who,
+            np.ascontiguousarray(coast, dtype=np.float64), noise, dropped,
+            float(cfg.min_range_m))
         return LidarScan(
             t_s=float(t_s),
             origin_ned=_frozen(o),
