@@ -168,6 +168,12 @@ class LosController:
                          np.asarray(positions, dtype=float).reshape(-1, 2),
                          np.asarray(velocities, dtype=float).reshape(-1, 2))
 
+    def traffic_due(self, t_s: float) -> bool:
+        """Whether :meth:`act` at ``t_s`` decides with the traffic (the give-way decision
+        is held between its once-a-second updates): the runtime shows it the traffic only
+        then."""
+        return t_s >= self._give_way_next_s
+
     def act(self, t_s: float, nav_state: _F8, route: _F8, scan: LidarScan | None) -> _F8:
         st = self.monitor.update(nav_state[:2], route)
         if route.shape[0] == 0:

@@ -586,9 +586,14 @@ class Twin:
         """u_L from the controller; a controller that gives way (``see_traffic``) is shown
         what the own ship knows of the traffic first: the confirmed tracks."""
         see = getattr(self.controller, "see_traffic", None)
-        if see is not None:
-            tr = self.perception.tracks.confirmed()
-            see(tr.ids, tr.mean[:, :2], tr.mean[:, 2:])
+        due = getattr(self.controller, "traffic_due", None)
+        if see is not None and (due is None or due(t)):
+            # the confirmed tracks' ids, positions and velocities (the same rows as
+            # ``tracks.confirmed()`` without building a second snapshot), and only on the
+            # ticks where the controller decides with them
+            tr = self.perception.tracks
+            m = tr.is_confirmed
+            see(tr.ids[m], tr.mean[m, :2], tr.mean[m, 2:])
         return self.controller.act(t, own, self.route, self.scan)
 
     def _weather_step(self, t: float) -> None:
