@@ -276,16 +276,16 @@ class FilterStage:
         95 % inflation gives it back exactly. Tracks keep their ids ("track 2" in the
         filter's explanation)."""
         obs: list[MovingObstacles | CoastSegments] = []
-        conf = tracks.confirmed()
-        if len(conf):
+        confirmed = tracks.is_confirmed  # (the rows predictions_for_safety keeps)
+        if confirmed.any():
             times = max(t_s, tracks.t_s) + self.dt_s * np.arange(self.N + 1)
             sp = predictions_for_safety(tracks, times, q=self.tracker_q,
                                         k_sigma=self._kappa,
                                         default_hull_radius_m=self.hull_radius_m)
             if len(sp.track_ids):
                 pos = sp.positions
-                hull = np.where(np.isnan(conf.semi_axes_m[:, 0]), self.hull_radius_m,
-                                conf.semi_axes_m[:, 0])
+                semi = tracks.semi_axes_m[confirmed, 0]
+                hull = np.where(np.isnan(semi), self.hull_radius_m, semi)
                 gap = np.min(np.hypot(pos[..., 0] - x[0], pos[..., 1] - x[1]), axis=1)
                 keep = gap < self.coast_radius_m + sp.clearance_radius_m.max(axis=1)
                 if keep.any():

@@ -24,6 +24,7 @@ from dataclasses import fields
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from asvtwin.checks import F8 as _F8
@@ -48,6 +49,66 @@ def _stack_gains(gains: list[AutopilotGains]) -> AutopilotGains:
         else:
             vals[f.name] = np.array([float(getattr(g, f.name)) for g in gains])
     return AutopilotGains(**vals)
+
+
+@njit(cache=True)
+def _los_course(pn, pe, an, ae, bn, be, lookahead):  # type: ignore[no-untyped-def]
+    """:func:`asvtwin.guidance.los_steer` of one craft (constant lookahead): course, along
+    and leg length, the same operations in the same order."""
+    dn, de = bn - an, be - ae
+    pi_p = math.atan2(de, dn)
+    rn, re = pn - an, pe - ae
+    c, s = math.cos(pi_p), math.sin(pi_p)
+    along = rn * c + re * s
+    cte = -rn * s + re * c
+    delta = max(lookahead, abs(cte) * 0.0)
+    chi = pi_p + math.atan(-cte / delta)
+    chi = math.atan2(math.sin(chi), math.cos(chi))  # np.angle(np.exp(1j * chi))
+    return chi, along, math.hypot(dn, de)
+
+
+@njit(cache=True)
+def _route_course_kernel(x, routes, n_wp, k, loop, length, course, out, has):  # type: ignore[no-untyped-def]
+    """Per target, what :meth:`TargetPilots._route_course_numpy` does for all at once: up
+    to three leg switches (inside two lengths of the leg's end or past it; ``loop`` back
+    to the first leg; the last leg's course held at the route's end), then the LOS course
+    on the leg reached, or the held course without a route. Updates ``k`` and
+    ``course``; writes ``out`` and ``has``."""
+    for i in range(x.shape[0]):
+        h = n_wp[i] >= 2 and k[i] < n_wp[i]
+        R = 2.0 * length[i]
+        look = 2.5 * length[i]
+        settled = False
+        for _ in range(3):
+            if not h:
+                break
+            kk = min(k[i], n_wp[i] - 1)
+            an, ae = routes[i, kk - 1, 0], routes[i, kk - 1, 1]
+            bn, be = routes[i, kk, 0], routes[i, kk, 1]
+            chi, along, leg = _los_course(x[i, 0], x[i, 1], an, ae, bn, be, look)
+            dist = math.hypot(bn - x[i, 0], be - x[i, 1])
+            if not (dist <= R or along >= leg - R):
+                out[i] = chi
+                settled = True
+                break
+            k[i] += 1
+            if loop[i] and k[i] >= n_wp[i]:
+                k[i] = 1
+            if k[i] >= n_wp[i]:  # hold the course of the last leg
+                course[i] = math.atan2(be - ae, bn - an)
+            h = n_wp[i] >= 2 and k[i] < n_wp[i]
+        has[i] = h
+        if settled:
+            continue
+        if not h:
+            out[i] = course[i]
+            continue
+        # still switching after three legs: steer on the leg reached
+        kk = min(k[i], n_wp[i] - 1)
+        j = max(kk - 1, 0)
+        chi, _, _ = _los_course(x[i, 0], x[i, 1], routes[i, j, 0], routes[i, j, 1],
+                                routes[i, kk, 0], routes[i, kk, 1], look)
+        out[i] = chi
 
 
 class TargetPilots:
@@ -101,7 +162,19 @@ class TargetPilots:
         return self._ap
 
     def _route_course(self, x: _F8) -> tuple[_F8, NDArray[np.bool_]]:
-        """LOS course of every target with a route left to follow; and which have one."""
+        """LOS course of every target with a route left to follow; and which have one.
+
+        One compiled pass over the targets (:func:`_route_course_kernel`); the NumPy
+        version (:meth:`_route_course_numpy`) is kept as its reference, equal to the bit
+        (``tests/twin/test_pilots.py``)."""
+        out = np.empty(len(self.kind))
+        has = np.empty(len(self.kind), np.bool_)
+        _route_course_kernel(np.ascontiguousarray(x, dtype=np.float64), self.routes,
+                             self.n_wp, self.k, self.loop, self.length, self.course, out, has)
+        return out, has
+
+    def _route_course_numpy(self, x: _F8) -> tuple[_F8, NDArray[np.bool_]]:
+        """The reference of :meth:`_route_course`, vectorised with NumPy."""
         n = len(self.kind)
         has = (self.n_wp >= 2) & (self.k < self.n_wp)
         if not has.any():
