@@ -27,6 +27,7 @@ import errno
 import logging
 import os
 import struct
+import threading
 import zlib
 from collections import defaultdict
 from pathlib import Path
@@ -95,12 +96,17 @@ class _ChunkedWriter:
         self._msg_index: dict[int, MessageIndex] = {}
         self._chunk_indexes: list[ChunkIndex] = []
         self._meta_indexes: list[MetadataIndex] = []
+        # the chunk being compressed on the other core: (thread, result box, raw, times,
+        # message indexes); joined at the next message, write or finish
+        self._flight: tuple[threading.Thread, list[Any], bytes, tuple[int, int],
+                            dict[int, MessageIndex]] | None = None
         self._stats = Statistics(attachment_count=0, channel_count=0,
                                  channel_message_counts=defaultdict(int), chunk_count=0,
                                  message_count=0, message_end_time=0, message_start_time=0,
                                  metadata_count=0, schema_count=0)
 
     def _write(self, data: bytes) -> None:
+        self._join()
         self._out.write(data)
         self._pos += len(data)
 
@@ -137,6 +143,8 @@ class _ChunkedWriter:
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
                     sequence: int) -> None:
+        if self._flight is not None:
+            self._join()
         st = self._stats
         t0, t1 = self._chunk_t
         self._chunk_t = ((log_time, log_time) if self._chunk_messages == 0
@@ -157,17 +165,49 @@ class _ChunkedWriter:
             self._finish_chunk()
 
     def _finish_chunk(self) -> None:
+        """Close the open chunk: its zstd compression and CRC (C code that releases the
+        GIL) run on a thread of their own while the twin goes on ticking; the chunk is laid
+        out and written when that thread is joined (:meth:`_join`: at the next message,
+        write or :meth:`finish`), so the file's bytes and their order are those of a
+        writer that compresses in line. An ``OSError`` of that write reaches the caller of
+        the call that joined (the next message), not the one that filled the chunk."""
         if self._chunk_messages == 0:
             return
+        self._join()
         raw = bytes(self._chunk.end())
-        packed = self._zstd.compress(raw)
-        t0, t1 = self._chunk_t
+        box: list[Any] = []
+        zstd = self._zstd
+
+        def pack() -> None:
+            box.append(zstd.compress(raw))
+            box.append(zlib.crc32(raw))
+
+        th = threading.Thread(target=pack, name="mcap-chunk", daemon=False)
+        self._flight = (th, box, raw, self._chunk_t, self._msg_index)
+        self._chunk_messages = 0
+        self._msg_index = {}
+        th.start()
+
+    def sync(self) -> None:
+        """Write the chunk in flight now (if any)."""
+        self._join()
+
+    def _join(self) -> None:
+        """Wait for the chunk in flight (if any) and write it with its message indexes."""
+        flight, self._flight = self._flight, None
+        if flight is None:
+            return
+        th, box, raw, (t0, t1), msg_index = flight
+        th.join()
+        if len(box) != 2:  # pragma: no cover - compression itself failed (memory)
+            box[:] = [self._zstd.compress(raw), zlib.crc32(raw)]
+        packed, crc = box
         chunk = self._bytes(Chunk(compression="zstd", data=packed, message_start_time=t0,
-                                  message_end_time=t1, uncompressed_crc=zlib.crc32(raw),
+                                  message_end_time=t1, uncompressed_crc=crc,
                                   uncompressed_size=len(raw)))
         start = self._pos
         offsets, index = {}, RecordBuilder()
-        for cid, mi in self._msg_index.items():
+        for cid, mi in msg_index.items():
             offsets[cid] = start + len(chunk) + index.count
             mi.write(index)
         indexes = bytes(index.end())
@@ -180,11 +220,10 @@ class _ChunkedWriter:
             message_index_length=len(indexes), compression="zstd",
             compressed_size=len(packed), uncompressed_size=len(raw)))
         self._stats.chunk_count += 1
-        self._chunk_messages = 0
-        self._msg_index = {}
 
     def finish(self) -> None:
         self._finish_chunk()
+        self._join()
         self._write(self._bytes(DataEnd(data_section_crc=0)))
         summary_start = self._pos
         groups: list[tuple[int, list[Any]]] = [
@@ -321,7 +360,14 @@ class Recorder:
 
     @property
     def bytes_written(self) -> int:
-        """Bytes written to the file so far (compressed chunks; the open chunk is not)."""
+        """Bytes written to the file so far (compressed chunks, the one being compressed
+        included; the open chunk is not)."""
+        w = self._writer
+        if w is not None and self.error is None and not self.closed:
+            try:
+                w.sync()
+            except OSError as exc:
+                self._fail(exc)
         return self._stream.written
 
     def _fail(self, exc: OSError) -> None:
