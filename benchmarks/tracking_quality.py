@@ -23,8 +23,10 @@ time; the autocorrelation is measured from the NEES series, Geyer's initial posi
 sequence), and beside it the naive check (one sample per 30 s taken as independent); average LiDAR and AIS NIS (2 dof); ID switches (a truth
 target's track id changing); MMSI swaps (an MMSI on a track following another vessel);
 false confirmed tracks per hour (confirmed tracks never matched to a vessel); lost tracks
-per hour (matched tracks deleted while their vessel was in view). Run:
-``python benchmarks/tracking_quality.py [--quick] [--first-seed S] [--seeds N]``; prints one JSON object.
+per hour (matched tracks deleted while their vessel was in view). With ``--ais-dimensions`` the tracker is given the length and beam of every vessel with AIS
+(AIS static data, :meth:`Tracker.set_dimensions`). Run:
+``python benchmarks/tracking_quality.py [--quick] [--first-seed S] [--seeds N] [--ais-dimensions]``;
+prints one JSON object.
 """
 
 from __future__ import annotations
@@ -64,7 +66,7 @@ WARMUP = 30
 
 def score(run: Run, ais_mask: np.ndarray, nis: dict[str, list[float]]) -> dict[str, float]:
     T, m = run.truth.shape[:2]
-    sq, nees, nees_thin = [], [], []
+    sq, nees, nees_thin, sig = [], [], [], []
     series: dict[tuple[int, int], list[float]] = {}  # NEES per (vessel, track), every second
     assigned = np.full((T, m), -1, np.int64)
     confirmed_ever: set[int] = set()
@@ -82,6 +84,7 @@ def score(run: Run, ais_mask: np.ndarray, nis: dict[str, list[float]]) -> dict[s
             e = s.mean[i, :2] - run.truth[k, j, :2]
             sq.append(float(e @ e))
             v = float(e @ np.linalg.solve(s.cov[i, :2, :2], e))
+            sig.append(float(np.sqrt(np.linalg.eigvalsh(s.cov[i, :2, :2])[-1])))
             nees.append(v)
             series.setdefault((j, int(tid)), []).append(v)
             if k % 30 == 0:
@@ -96,7 +99,7 @@ def score(run: Run, ais_mask: np.ndarray, nis: dict[str, list[float]]) -> dict[s
     # lost: a matched track that disappears while its vessel is still matched later by another id
     hours = (T - WARMUP) / 3600.0
     return {
-        "sq_err": float(np.sum(sq)), "n": len(sq), "nees_sum": float(np.sum(nees)),
+        "sq_err": float(np.sum(sq)), "n": len(sq), "nees_sum": float(np.sum(nees)), "sigma": sig,
         "nees_thin": nees_thin, "nees_series": list(series.values()), "false": len(false), "switches": switches, "hours": hours,
         "mmsi_swaps": mmsi_swaps(run, ais_mask, start=WARMUP),
         "mmsi_swaps_incl_warmup": mmsi_swaps(run, ais_mask),
@@ -104,7 +107,7 @@ def score(run: Run, ais_mask: np.ndarray, nis: dict[str, list[float]]) -> dict[s
     }
 
 
-def run_set(kind: str, seeds: range, fusion: str, persistence: float) -> dict[str, float]:
+def run_set(kind: str, seeds: range, fusion: str, persistence: float, dimensions: bool = False) -> dict[str, float]:
     parts = []
     for seed in seeds:
         land = sensor_land = None
@@ -123,6 +126,9 @@ def run_set(kind: str, seeds: range, fusion: str, persistence: float) -> dict[st
         band = 0.0 if kind == "near_coast_no_band" else TrackerConfig().chart_error_m
         cfg = TrackerConfig(fusion=fusion, chart_error_m=band, depth_persistence_s=persistence)
         tracker = Tracker(cfg, land=land)
+        if dimensions:  # AIS static data: the real length and beam of every vessel with AIS
+            for i in np.flatnonzero(ais):
+                tracker.set_dimensions(257000000 + int(i), float(L[i]), float(L[i]) / 4.0)
         nis: dict[str, list[float]] = {"lidar": [], "ais": []}
         step = tracker.step
 
@@ -150,6 +156,8 @@ def run_set(kind: str, seeds: range, fusion: str, persistence: float) -> dict[st
     lo_e, hi_e = nees_bounds(2, n_eff)
     return {
         "rmse_m": float(np.sqrt(sum(p["sq_err"] for p in parts) / max(n, 1))),
+        # the largest position σ of the matched confirmed tracks (what clearances are built from)
+        "position_sigma_median_m": float(np.median([v for p in parts for v in p["sigma"]])) if n else float("nan"),
         "nees": nees, "nees_n_eff": n_eff, "nees_bounds_eff": [lo_e, hi_e],
         "nees_in_bounds_eff": int(lo_e <= nees <= hi_e) if n else 0,
         "nees_bounds": [lo, hi], "nees_in_bounds": int(lo <= np.mean(thin) <= hi) if thin else 0,
@@ -177,6 +185,8 @@ def main() -> None:
     ap.add_argument("--first-seed", type=int, default=0,
                     help="first seed of each scene (default 0; the tracker's settings were chosen on seeds "
                          "0-3, so a held-out check uses e.g. --first-seed 100)")
+    ap.add_argument("--ais-dimensions", action="store_true",
+                    help="give the tracker each AIS vessel's length and beam (AIS static data, Tracker.set_dimensions)")
     args = ap.parse_args()
     count = args.seeds if args.seeds is not None else (2 if args.quick else 4)
     if count < 1:
@@ -184,11 +194,12 @@ def main() -> None:
     seeds = range(args.first_seed, args.first_seed + count)
     t0 = time.perf_counter()
     kinds = ("open_sea", "close_pairs", "coast_layout_open", "near_coast", "near_coast_no_band")
-    res = {k: run_set(k, seeds, args.fusion, args.depth_persistence) for k in kinds}
+    res = {k: run_set(k, seeds, args.fusion, args.depth_persistence, args.ais_dimensions) for k in kinds}
     o, c, co = res["open_sea"], res["near_coast"], res["coast_layout_open"]
     out = {
         "fusion": args.fusion,
         "depth_persistence": args.depth_persistence,
+        "ais_dimensions": int(args.ais_dimensions),
         "seeds_per_scene": len(seeds), "first_seed": args.first_seed,
         # every second's NEES against χ² bounds for its effective sample size (the
         # autocorrelation measured from the NEES series themselves) ...

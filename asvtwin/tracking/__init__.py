@@ -74,7 +74,7 @@ from asvtwin.tracking.prediction import (
     uncertainty_polygon,
 )
 from asvtwin.tracking.snapshot import TRACK_STATUS, TrackSnapshot
-from asvtwin.tracking.tracker import Tracker
+from asvtwin.tracking.tracker import Tracker, VesselDimensions
 
 __all__ = [
     "COVARIANCE_INFLATION",
@@ -113,6 +113,7 @@ __all__ = [
     "TrackSnapshot",
     "Tracker",
     "TrackerConfig",
+    "VesselDimensions",
     "ais_measurements",
     "assign_tracks",
     "cluster_points",

@@ -132,6 +132,10 @@ class Clusters:
         Angular spacing of the scan's rays [rad] (NaN when unknown). A cluster of one or
         two returns does not show the ray spacing itself; the hull model needs it to
         bound the silhouette (the rays beside the cluster missed the hull).
+    max_range_m : float
+        The LiDAR's maximum range [m] (inf when unknown). A hull reaching beyond it is cut
+        off there, and the hull model lets a cluster whose far returns reach the limit go
+        on beyond it.
     """
 
     points: _F8
@@ -143,6 +147,7 @@ class Clusters:
     n_small: int = 0
     end_shadow_m: _F8 | None = None
     ray_step_rad: float = float("nan")
+    max_range_m: float = float("inf")
 
     def __len__(self) -> int:
         return int(self.offsets.shape[0] - 1)
@@ -345,7 +350,7 @@ def cluster_scan(scan: LidarScan, land: LandMask | None = None, config: ClusterC
     shadow = _end_shadows(g, off, ranges, hit, step, full, cfg.occlusion_tol_m)
     return Clusters(points=p, offsets=off, t_s=float(scan.t_s), origin_ned=np.array(scan.origin_ned, dtype=float),
                     n_coast=n_before - pts.shape[0], n_invalid=int(n_invalid), n_small=int(small),
-                    end_shadow_m=shadow, ray_step_rad=step)
+                    end_shadow_m=shadow, ray_step_rad=step, max_range_m=float(scan.max_range_m))
 
 
 def _scan_geometry(angles: _F8) -> tuple[float, bool]:

@@ -75,21 +75,42 @@ def _box_area(pts, s, n, c, sn):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _box_orientation(pts, s, n):  # type: ignore[no-untyped-def]
-    """Direction [rad] of the smallest-area bounding rectangle (mod π/2)."""
-    best, th = np.inf, 0.0
-    for i in range(_COARSE):
-        a = 0.5 * np.pi * i / _COARSE
-        v = _box_area(pts, s, n, np.cos(a), np.sin(a))
-        if v < best:
-            best, th = v, a
+def _angle_table():  # type: ignore[no-untyped-def]
+    """``[angle, cos, sin]`` of every angle the orientation search tries: rows
+    ``0.._COARSE-1`` the coarse angles, row ``_COARSE + c _FINE + i`` the fine angle ``i``
+    around coarse angle ``c`` (the search's own arithmetic, done once: the 29 cos/sin
+    pairs per cluster were a sixth of its cost)."""
     step = 0.5 * np.pi / _COARSE
-    th0 = th
-    for i in range(_FINE):
-        a = th0 - step + 2.0 * step * i / (_FINE - 1)
-        v = _box_area(pts, s, n, np.cos(a), np.sin(a))
+    tab = np.empty((_COARSE * (1 + _FINE), 3))
+    for c in range(_COARSE):
+        a = 0.5 * np.pi * c / _COARSE
+        tab[c, 0], tab[c, 1], tab[c, 2] = a, np.cos(a), np.sin(a)
+    for c in range(_COARSE):
+        th0 = tab[c, 0]
+        for i in range(_FINE):
+            a = th0 - step + 2.0 * step * i / (_FINE - 1)
+            r = _COARSE + c * _FINE + i
+            tab[r, 0], tab[r, 1], tab[r, 2] = a, np.cos(a), np.sin(a)
+    return tab
+
+
+_ANGLES = _angle_table()
+
+
+@njit(cache=True)
+def _box_orientation(pts, s, n):  # type: ignore[no-untyped-def]
+    """Direction [rad] of the smallest-area bounding rectangle (mod π/2): 5° steps over
+    90°, then 1° around the best (angles from :data:`_ANGLES`)."""
+    best, th, cb = np.inf, 0.0, 0
+    for i in range(_COARSE):
+        v = _box_area(pts, s, n, _ANGLES[i, 1], _ANGLES[i, 2])
         if v < best:
-            best, th = v, a
+            best, th, cb = v, _ANGLES[i, 0], i
+    for i in range(_FINE):
+        r = _COARSE + cb * _FINE + i
+        v = _box_area(pts, s, n, _ANGLES[r, 1], _ANGLES[r, 2])
+        if v < best:
+            best, th = v, _ANGLES[r, 0]
     return th
 
 
@@ -112,10 +133,14 @@ def _axis(near, far, sign, g_near, g_far_lo, g_far_hi, kappa, near_kappa):  # ty
 
 
 @njit(cache=True)
-def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, prm, z, R, ext, R1, row):  # type: ignore[no-untyped-def]
+def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, prm, z, R, ext, R1, row,  # type: ignore[no-untyped-def]
+                  size_l=np.nan, size_b=np.nan):
     """The hull-centre model of the ``n`` returns ``points[s:s + n]`` (hull axis
     ``heading_i``, NaN: unknown; occluder shadows ``shadow[si]``), written to row ``row``
-    of ``z``, ``R``, ``ext``, ``R1`` (see :func:`hull_box_kernel`)."""
+    of ``z``, ``R``, ``ext``, ``R1`` (see :func:`hull_box_kernel`). ``size_l``, ``size_b``:
+    the hull's known length and beam [m] (AIS static data of the track's MMSI; NaN:
+    unknown, bounded by the length/beam ratio), used only with a known axis; they are
+    taken to ``prm[15]`` relative (at least ``prm[16]`` m)."""
     rs, bs, step, rho_lo, rho_hi, ktip, ostd, floor = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7]
     kgap, taper, a_lo, a_hi, kappa, max_hidden = prm[8], prm[9], prm[10], prm[11], prm[12], prm[13]
     # line of sight to the centroid, range, ray spacing
@@ -126,6 +151,9 @@ def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, pr
     c0 /= n
     c1 /= n
     r = np.hypot(c0 - o0, c1 - o1)
+    r_far = 0.0  # range of the farthest return
+    for j in range(n):
+        r_far = max(r_far, np.hypot(points[s + j, 0] - o0, points[s + j, 1] - o1))
     if r > 1e-9:
         l0, l1 = (c0 - o0) / r, (c1 - o1) / r
     else:
@@ -178,7 +206,13 @@ def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, pr
     dn = kgap * d / gn if (gn > 1e-9 and not s0 < so < s1) else big
     es_hi = es + min(dh, big)  # what the sampling allows the extents to be
     et_hi = et + min(dn, big)
-    if known:
+    sized = known and np.isfinite(size_l) and np.isfinite(size_b) and size_l > 0.0 and size_b > 0.0
+    if sized:  # the vessel's own dimensions (AIS message 5, 19, 24): no ratio needed
+        tl = max(prm[15] * size_l, prm[16])
+        tb = max(prm[15] * size_b, prm[16])
+        L_lo, L_hi = max(size_l - tl, 0.0), size_l + tl
+        B_lo, B_hi = max(size_b - tb, 0.0), size_b + tb
+    elif known:
         L_lo, L_hi = rho_lo * et, rho_hi * et_hi  # a hull seen end-on: L from the beam
         B_lo, B_hi = es / rho_hi, es_hi / rho_lo  # seen broadside: B from the length
     else:  # either side may be the hull axis: the unseen depth up to ρ_min times the
@@ -195,7 +229,7 @@ def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, pr
     off = np.arctan2(abs(to - 0.5 * (t0 + t1)), abs(so - 0.5 * (s0 + s1)))
     w_all = 1.0 if off < a_lo else 0.0
     w_any = 1.0 if off < a_hi else 0.0
-    L_est = max(es, L_lo) / (1.0 - taper)
+    L_est = size_l if sized else max(es, L_lo) / (1.0 - taper)
     tap_lo, tap_hi, half_lo, half_hi = 0.0, 0.0, 0.0, 0.0
     if not known:
         tap_hi, half_hi = taper * L_est, et
@@ -232,7 +266,34 @@ def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, pr
             occ_t1 = max(occ_t1, ext_t)
         elif wn <= 0.0 and (sign_n < 0.0 or abs(wn) >= _NEAR_HIDE):
             occ_t0 = max(occ_t0, ext_t)
-    if known:  # the beam is at most 1/ρ_min of the longest the hull can be
+    # the range limit: returns that reach the LiDAR's maximum range (within the range
+    # noise and the sampling gap along a face running away) do not end the hull, they cut
+    # it off. On each axis the hull may go on beyond what is seen by up to the longest it
+    # can be (at most max_hidden): on the far side of an axis that points away from the sensor, on both sides
+    # of an axis within ~20° of across the line of sight (the range circle curves away
+    # from it both ways). Without this a hull entering or leaving the range was measured
+    # metres towards the sensor, scan after scan (docs/tracking.md, "Tracking quality").
+    # (within: the range noise and two sampling gaps of a face running away)
+    lh, ln = abs(l0 * ch + l1 * sh), abs(-l0 * sh + l1 * ch)
+    if r_far >= prm[17] - (3.0 * rs + 2.0 * kgap * d):
+        cut = min(max(L_hi - es, 0.0), max_hidden)
+        across = lh < _NEAR_HIDE
+        if sign_h > 0.0 or across:
+            occ_h1 = max(occ_h1, cut)
+        if sign_h < 0.0 or across:
+            occ_h0 = max(occ_h0, cut)
+        cut = min(max(B_hi - et, 0.0), max_hidden)
+        across = ln < _NEAR_HIDE
+        if sign_n > 0.0 or across:
+            occ_t1 = max(occ_t1, cut)
+        if sign_n < 0.0 or across:
+            occ_t0 = max(occ_t0, cut)
+    if sized:  # the beam is known
+        cap_t = max(B_hi - et, 0.0)
+        occ_t0, occ_t1 = min(occ_t0, cap_t), min(occ_t1, cap_t)
+        cap_h = max(L_hi - es, 0.0)  # and so is the length
+        occ_h0, occ_h1 = min(occ_h0, cap_h), min(occ_h1, cap_h)
+    elif known:  # the beam is at most 1/ρ_min of the longest the hull can be
         cap_t = max((es + occ_h0 + occ_h1 + min(dh, big)) / rho_lo - et, 0.0)
         occ_t0, occ_t1 = min(occ_t0, cap_t), min(occ_t1, cap_t)
     # along h
@@ -268,7 +329,7 @@ def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, pr
 
 
 @njit(cache=True)
-def hull_box_kernel(points, offsets, origin, heading, heading_std, shadow, prm, only_known=False):  # type: ignore[no-untyped-def]
+def hull_box_kernel(points, offsets, origin, heading, heading_std, shadow, prm, only_known, sizes):  # type: ignore[no-untyped-def]
     """Centres ``z (k, 2)``, covariances ``R (k, 2, 2)`` (the unseen-depth part scaled by
     ``kappa``: for a filter), box extents ``ext (k, 2)`` ``[along, across]`` and the
     single-scan covariances ``R1`` (kappa = 1: for gates) of all clusters.
@@ -282,7 +343,9 @@ def hull_box_kernel(points, offsets, origin, heading, heading_std, shadow, prm, 
     cluster), rho_min, rho_max, k_tip, orientation_std, floor_std, k_gap, taper,
     taper_angle_lo, taper_angle_hi, kappa (persistence of the unseen-depth error, scans),
     max_hidden (most of a hull taken to hide behind an occluder, m), ray_step (the scan's
-    ray spacing, rad; 0: unknown)].
+    ray spacing, rad; 0: unknown), known_size_tol, known_size_floor (m), max_range (m; inf:
+    unknown)]. ``sizes (k, 2)``:
+    each hull's known length and beam [m] (NaN: unknown; used with a known heading).
     """
     k = offsets.shape[0] - 1
     z = np.full((k, 2), np.nan)
@@ -293,7 +356,8 @@ def hull_box_kernel(points, offsets, origin, heading, heading_std, shadow, prm, 
         s, n = offsets[i], offsets[i + 1] - offsets[i]
         if n == 0 or (only_known and not np.isfinite(heading[i])):
             continue
-        _hull_box_one(points, s, n, origin[0], origin[1], heading[i], heading_std[i], shadow, i, prm, z, R, ext, R1, i)
+        _hull_box_one(points, s, n, origin[0], origin[1], heading[i], heading_std[i], shadow, i, prm, z, R, ext, R1, i,
+                      sizes[i, 0], sizes[i, 1])
     return z, R, ext, R1
 
 

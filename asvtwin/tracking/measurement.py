@@ -184,6 +184,10 @@ class LidarModel:
     max_hidden_m : float
         Most of a hull taken to continue unseen behind an occluder beside a cluster's end
         [m] (the occluder's shadow bounds it first; :attr:`Clusters.end_shadow_m`).
+    known_size_tol, known_size_floor_m : float
+        A hull's known length and beam (AIS static data: :meth:`Tracker.set_dimensions`)
+        are taken to ± ``max(known_size_tol × size, known_size_floor_m)`` (AIS gives whole
+        metres, from a reference point that is often approximate) [-], [m].
     """
 
     range_std_m: float = 0.05
@@ -210,11 +214,13 @@ class LidarModel:
     centre_floor_m: float = 0.3
     depth_persistence: float = 1.0
     max_hidden_m: float = 150.0
+    known_size_tol: float = 0.1
+    known_size_floor_m: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("range_std_m", "bearing_std_rad", "coverage_gain", "depth_gain", "end_gain", "min_coverage_rad",
                      "needle_ratio", "needle_depth_gain", "angular_step_rad", "tip_gap_rays", "orientation_std_rad",
-                     "heading_floor_rad", "centre_floor_m"):
+                     "heading_floor_rad", "centre_floor_m", "known_size_tol", "known_size_floor_m"):
             _positive("LidarModel", name, getattr(self, name), lo_ok=True)
         _positive("LidarModel", "gap_factor", self.gap_factor)
         if not (np.isfinite(self.depth_persistence) and self.depth_persistence >= 1.0):
@@ -276,7 +282,9 @@ def _hull_prm(mdl: LidarModel, clusters: Clusters | None = None) -> _F8:
     return np.array([mdl.range_std_m, mdl.bearing_std_rad, mdl.angular_step_rad, mdl.length_beam_ratio[0],
                      mdl.length_beam_ratio[1], mdl.tip_gap_rays, mdl.orientation_std_rad, mdl.centre_floor_m,
                      mdl.gap_factor, mdl.bow_taper, mdl.taper_angles_rad[0], mdl.taper_angles_rad[1],
-                     mdl.depth_persistence, mdl.max_hidden_m, step if np.isfinite(step) and step > 0.0 else 0.0])
+                     mdl.depth_persistence, mdl.max_hidden_m, step if np.isfinite(step) and step > 0.0 else 0.0,
+                     mdl.known_size_tol, mdl.known_size_floor_m,
+                     np.inf if clusters is None else float(clusters.max_range_m)])
 
 
 def _end_shadows(clusters: Clusters) -> _F8:
@@ -287,7 +295,8 @@ def _end_shadows(clusters: Clusters) -> _F8:
 
 
 def hull_centres(clusters: Clusters, heading_rad: ArrayLike, heading_std_rad: ArrayLike,
-                 model: LidarModel | None = None, *, only_known: bool = False) -> tuple[_F8, _F8, _F8]:
+                 model: LidarModel | None = None, *, only_known: bool = False,
+                 size_m: ArrayLike | None = None) -> tuple[_F8, _F8, _F8]:
     """Hull-centre measurements of clusters whose hull axis is known (or NaN: unknown).
 
     Parameters
@@ -300,6 +309,9 @@ def hull_centres(clusters: Clusters, heading_rad: ArrayLike, heading_std_rad: Ar
     model : LidarModel, optional
     only_known : bool
         Skip clusters without a heading (their rows are NaN).
+    size_m : array_like, shape (k, 2), optional
+        Known length and beam of each hull [m] (AIS static data; NaN rows: unknown). With
+        a heading they replace the length/beam-ratio bounds of the unseen depth.
 
     Returns
     -------
@@ -319,8 +331,10 @@ def hull_centres(clusters: Clusters, heading_rad: ArrayLike, heading_std_rad: Ar
         raise StateError("hull-centre measurements need the sensor position (Clusters.origin_ned), actually: NaN")
     points = np.ascontiguousarray(clusters.points, dtype=np.float64).reshape(-1, 2)
     offsets = np.ascontiguousarray(clusters.offsets, dtype=np.int64)
+    sizes = np.full((k, 2), np.nan) if size_m is None else \
+        np.array(np.broadcast_to(np.asarray(size_m, np.float64), (k, 2)))
     z, R, ext, _ = hull_box_kernel(points, offsets, origin, h, hs, _end_shadows(clusters), _hull_prm(mdl, clusters),
-                                   only_known)
+                                   only_known, sizes)
     return z, R, ext
 
 
@@ -384,7 +398,7 @@ def lidar_measurements(clusters: Clusters, model: LidarModel | None = None) -> L
     if mdl.centre == "hull_box" and len(z):
         k = len(z)
         z, Rf, ext, R = hull_box_kernel(points, offsets, origin, np.full(k, np.nan), np.zeros(k),
-                                        _end_shadows(clusters), _hull_prm(mdl, clusters), False)
+                                        _end_shadows(clusters), _hull_prm(mdl, clusters), False, np.full((k, 2), np.nan))
         return LidarMeasurements(z=z, R=R, fits=EllipseFits.from_array(out), used_fit=use, extent_m=ext,
                                  R_update=Rf)
     return LidarMeasurements(z=z, R=R, fits=EllipseFits.from_array(out), used_fit=use, extent_m=ext)

@@ -75,11 +75,15 @@ class TrackSnapshot:
               updated_lidar: ArrayLike, updated_ais: ArrayLike, lidar_only_mean: ArrayLike,
               ais_only_mean: ArrayLike, counters: Mapping[str, int]) -> TrackSnapshot:
         """Copy the arrays into a read-only snapshot (``mmsi < 0`` means none)."""
+        # (a tuple of str is taken as it is: the tracker builds one per tick, 200 strings
+        # through a numpy string array cost ~50 µs)
+        st = status if isinstance(status, tuple) and all(type(v) is str for v in status) else \
+            tuple(np.asarray(status, dtype=str).reshape(-1).tolist())
         return cls(
             t_s=float(t_s), ids=_ro(ids, np.int64),
-            mmsi=tuple(m if m >= 0 else None for m in np.asarray(mmsi, dtype=np.int64).reshape(-1).tolist()),
+            mmsi=tuple([m if m >= 0 else None for m in np.asarray(mmsi, dtype=np.int64).reshape(-1).tolist()]),
             mean=_ro(mean, np.float64).reshape(-1, 4), cov=_ro(cov, np.float64).reshape(-1, 4, 4),
-            status=tuple(np.asarray(status, dtype=str).reshape(-1).tolist()),
+            status=st,
             semi_axes_m=_ro(semi_axes_m, np.float64).reshape(-1, 2),
             last_update_s=_ro(last_update_s, np.float64), updated_lidar=_ro(updated_lidar, np.bool_),
             updated_ais=_ro(updated_ais, np.bool_),

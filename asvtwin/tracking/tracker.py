@@ -28,9 +28,10 @@ returns, tiny clusters are counted in :attr:`Tracker.counters` and skipped.
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import replace
 from types import MappingProxyType
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -57,7 +58,7 @@ from asvtwin.tracking.measurement import (
     ais_measurements,
     lidar_measurements,
 )
-from asvtwin.tracking.snapshot import TrackSnapshot
+from asvtwin.tracking.snapshot import TRACK_STATUS, TrackSnapshot
 from asvtwin.tracking.tracker_kernels import (
     coincident,
     near_tracks,
@@ -66,7 +67,21 @@ from asvtwin.tracking.tracker_kernels import (
     update_rows,
 )
 
-__all__ = ["Tracker"]
+__all__ = ["Tracker", "VesselDimensions"]
+
+
+class VesselDimensions(Protocol):
+    """What :meth:`Tracker.update_static` reads of an AIS static record
+    (:class:`asvtwin.sources.ais.AisStatic` has it)."""
+
+    @property
+    def mmsi(self) -> int: ...
+
+    @property
+    def length_m(self) -> float | None: ...
+
+    @property
+    def beam_m(self) -> float | None: ...
 
 _log = logging.getLogger(__name__)
 
@@ -107,6 +122,7 @@ class Tracker:
         self._t: float | None = None
         self._t_scan: float | None = None  # time of the last scan (the persistence's Δt)
         self._models: dict[float, LidarModel] = {}
+        self._dims: dict[int, tuple[float, float]] = {}  # MMSI -> (length, beam) [m], AIS static data
         self._next_id = 1
         self._a: dict[str, np.ndarray] = {k: np.empty((0, *s), d) for k, (s, d, _) in _FIELDS.items()}
         self._counts: dict[str, int] = dict.fromkeys((
@@ -151,6 +167,55 @@ class Tracker:
         ids = np.arange(self._next_id, self._next_id + k, dtype=np.int64)
         self._next_id += k
         return ids
+
+    def set_dimensions(self, mmsi: int, length_m: float | None, beam_m: float | None) -> bool:
+        """Known length and beam of the vessel with this MMSI (AIS static data: message 5,
+        19 or 24B dimensions ``A + B`` and ``C + D``).
+
+        A track tied to that MMSI is then measured by LiDAR with the hull's real extent
+        (:mod:`asvtwin.tracking.hull_model`: the unseen depth is the known length or beam
+        less what is seen, to ± ``LidarModel.known_size_tol``) instead of bounds from the
+        length/beam ratio. Unknown, zero or non-finite sizes clear the entry (AIS sends 0
+        for "not available"). Returns whether dimensions are now known for ``mmsi``.
+        """
+        key = int(mmsi)
+        L = float("nan") if length_m is None else float(length_m)
+        B = float("nan") if beam_m is None else float(beam_m)
+        if key <= 0 or not (np.isfinite(L) and np.isfinite(B) and L > 0.0 and B > 0.0 and B <= L):
+            self._dims.pop(key, None)
+            return False
+        self._dims[key] = (L, B)
+        return True
+
+    def update_static(self, records: Iterable[VesselDimensions]) -> int:
+        """Take AIS static records (objects with ``mmsi``, ``length_m`` and ``beam_m``,
+        e.g. :class:`asvtwin.sources.ais.AisStatic` from ``ReportBatch.static``) and call
+        :meth:`set_dimensions` for each; records without both sizes are skipped (an
+        earlier, complete record stays). Returns the number of MMSIs with known dimensions.
+        """
+        for r in records:
+            L, B = r.length_m, r.beam_m
+            if L is not None and B is not None:
+                self.set_dimensions(int(r.mmsi), L, B)
+        return len(self._dims)
+
+    @property
+    def dimensions(self) -> MappingProxyType[int, tuple[float, float]]:
+        """Known ``(length, beam)`` [m] by MMSI (read-only)."""
+        return MappingProxyType(dict(self._dims))
+
+    def _track_dims(self) -> _F8:
+        """Known length and beam of every track (its MMSI's; NaN when none), (n, 2)."""
+        mm = self._a["mmsi"]
+        out = np.full((mm.shape[0], 2), np.nan)
+        if self._dims:
+            get = self._dims.get
+            for i, m in enumerate(mm.tolist()):
+                if m >= 0:
+                    d = get(m)
+                    if d is not None:
+                        out[i] = d
+        return out
 
     # ------------------------------------------------------------------ the tick
     def step(
@@ -352,6 +417,9 @@ class Tracker:
         # footprint: the fitted semi-axes along the course (5 × 2 m when not fitted)
         ax = a["axes"][sel]
         semi = np.column_stack([np.nan_to_num(ax[:, 0], nan=5.0), np.nan_to_num(ax[:, 1], nan=2.0)])
+        dims = self._track_dims()[sel]  # a tied track with AIS dimensions: its real footprint
+        known = np.isfinite(dims[:, 0])
+        semi[known] = 0.5 * dims[known]
         semi[:, 1] = np.minimum(semi[:, 1], semi[:, 0])
         v = a["x"][sel, 2:]
         out, n_split = split_clusters(cl, x, np.minimum(2.0 * sig, 10.0), min_separation_m=cfg.merge_distance_m,
@@ -456,7 +524,7 @@ class Tracker:
             np.ascontiguousarray(cl.points, dtype=np.float64).reshape(-1, 2),
             np.ascontiguousarray(cl.offsets, dtype=np.int64), np.asarray(cl.origin_ned, dtype=np.float64).reshape(2),
             _end_shadows(cl), _hull_prm(mdl, cl), mdl.heading_floor_rad, cfg.course_min_speed_m_s ** 2,
-            cfg.course_max_std_rad ** 2, self._gL, FORBIDDEN, cfg.course_min_returns)
+            cfg.course_max_std_rad ** 2, self._gL, FORBIDDEN, cfg.course_min_returns, self._track_dims())
 
     def _update_sensor_filters(self, zL: _F8, RL: _F8, zA: _F8, RA: _F8) -> None:
         a, t = self._a, self._t
@@ -599,7 +667,9 @@ class Tracker:
 
     def _snapshot(self, t: float) -> TrackSnapshot:
         a = self._a
-        status = np.where(a["confirmed"], np.where(a["gotL"] | a["gotA"], "confirmed", "coasting"), "tentative")
+        # 0 tentative, 1 confirmed (updated this tick), 2 coasting: TRACK_STATUS[code]
+        code = a["confirmed"] * (2 - (a["gotL"] | a["gotA"]))
+        status = tuple([TRACK_STATUS[c] for c in code.tolist()])
         nan4 = np.full_like(a["x"], np.nan)
         return TrackSnapshot.build(
             t_s=t, ids=a["ids"], mmsi=a["mmsi"], mean=a["x"], cov=a["P"], status=status,
@@ -607,5 +677,5 @@ class Tracker:
             updated_lidar=a["gotL"], updated_ais=a["gotA"],
             lidar_only_mean=np.where(a["hasL"][:, None], a["xL"], nan4),
             ais_only_mean=np.where(a["hasA"][:, None], a["xA"], nan4),
-            counters=dict(self._counts),
+            counters=self._counts,  # build() copies it
         )

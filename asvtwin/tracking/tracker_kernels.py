@@ -12,6 +12,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+# numba's on-disk cache keys a kernel on its own file only: pair_measurements below
+# compiles _hull_box_one into itself, so a change to hull_model.py must come with a change
+# to this file (or a cleared __pycache__), else the cached kernel keeps the old model
+# (it did once, silently, while the range-limit model was written).
 from asvtwin.tracking.hull_model import _hull_box_one
 from asvtwin.tracking.kalman import _update_kernel
 
@@ -118,13 +122,14 @@ def coincident(x, P, mmsi, gamma):  # type: ignore[no-untyped-def]
 
 @njit(cache=True)
 def pair_measurements(cost, x, P, z0, R0, Ru0, use_course, points, offsets, origin, shadow, prm, heading_floor,
-                      min_speed2, max_course_var, gamma, forbidden, min_returns=1):  # type: ignore[no-untyped-def]
+                      min_speed2, max_course_var, gamma, forbidden, min_returns, dims):  # type: ignore[no-untyped-def]
     """The measurement of every gated (track, cluster) pair (``cost < forbidden``, in
     ``np.nonzero`` order), measured again with the track's course where it has one
     (speed² ≥ ``min_speed2``, course variance ≤ ``max_course_var``; clusters of at least
     ``min_returns`` returns) and re-gated with it;
     ``cost`` is updated in place (:meth:`asvtwin.tracking.tracker.Tracker._pair_measurements`
-    says why). Returns ``ti, cj, z, R (single scan), R_update, with_course``."""
+    says why). ``dims (n, 2)``: each track's known length and beam [m] (NaN: unknown),
+    used with its course. Returns ``ti, cj, z, R (single scan), R_update, with_course``."""
     n, k = cost.shape
     cnt = 0
     for i in range(n):
@@ -156,7 +161,7 @@ def pair_measurements(cost, x, P, z0, R0, Ru0, use_course, points, offsets, orig
                 if sp2 >= min_speed2 and var <= max_course_var:
                     _hull_box_one(points, offsets[j], offsets[j + 1] - offsets[j], origin[0], origin[1],
                                   np.arctan2(v1, v0), max(np.sqrt(var), heading_floor), shadow, j, prm,
-                                  zp, Rpu, ext, Rp, p)
+                                  zp, Rpu, ext, Rp, p, dims[i, 0], dims[i, 1])
                     wc[p] = True
                     # the pair's gate and cost with its own measurement (gated_costs' arithmetic)
                     a = P[i, 0, 0] + Rp[p, 0, 0]
