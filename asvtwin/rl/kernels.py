@@ -7,6 +7,8 @@
   heading there and the look-ahead point's bearing.
 - :func:`filter_reach`: which environments have an obstacle that could constrain the
   safety filter's plan (the pre-cull before any per-environment work).
+- :func:`lidar_selection`: which LiDAR returns of one ship become the filter's circles
+  (the selection rule of :func:`asvtwin.control.lidar_circles`, compiled).
 
 One call handles every environment: no Python loop over environments on the hot path.
 """
@@ -15,9 +17,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
-__all__ = ["cast_circles", "filter_reach", "path_features"]
+__all__ = ["cast_circles", "filter_reach", "lidar_selection", "path_features"]
 
 
 @njit(cache=True)
@@ -180,3 +183,59 @@ def filter_reach(pos, ranges, hit, skip_from, lidar_lim, moving, vel, moving_ran
                                 break
                 j += 1
         out[i] = need
+
+
+@njit(cache=True)
+def lidar_selection(psi, rel, ranges, hit, skip_from, lidar_range, lim, max_range,
+                    n_sectors, per_sector, out):  # pragma: no cover - compiled
+    """The rays of one own ship whose returns become the safety filter's circles.
+
+    The rule of :func:`asvtwin.control.lidar_circles` (with the environment's masking in
+    front of it), without its per-sector Python loop: a ray j returns when
+    ``ranges[j] < lidar_range`` and it did not hit a moving obstacle (``hit[j] <
+    skip_from``); nothing is selected unless some return is closer than ``lim`` [m];
+    otherwise returns in (0, ``max_range``) are binned by their absolute bearing
+    ``psi + rel[j]`` (mod 2π) into ``n_sectors`` equal sectors and in each the
+    ``per_sector`` closest are kept (equal ranges: the lower ray index first). Writes
+    the chosen ray indices into ``out`` sector by sector, closest first (the order of
+    ``lidar_circles``' circles) and returns how many.
+    """
+    m = rel.shape[0]
+    r = np.empty(m)
+    closest = np.inf
+    for j in range(m):
+        rj = ranges[j]
+        if rj < lidar_range and hit[j] < skip_from:
+            r[j] = rj
+            closest = min(closest, rj)
+        else:
+            r[j] = np.inf
+    if not closest < lim:
+        return 0
+    two_pi = 2.0 * math.pi
+    sector = np.empty(m, dtype=np.int64)
+    for j in range(m):
+        sector[j] = -1
+        if r[j] < max_range and r[j] > 0.0:
+            a = psi + rel[j]
+            if math.isfinite(a):
+                sector[j] = math.floor((a % two_pi) / two_pi * n_sectors)
+    n = 0
+    for s in range(n_sectors):
+        start = n
+        for j in range(m):
+            if sector[j] != s:
+                continue
+            # insertion into this sector's sorted list (ascending range, stable)
+            pos = n
+            while pos > start and r[out[pos - 1]] > r[j]:
+                pos -= 1
+            if pos - start >= per_sector:
+                continue
+            last = min(n, start + per_sector - 1)
+            for q in range(last, pos, -1):
+                out[q] = out[q - 1]
+            out[pos] = j
+            if n < start + per_sector:
+                n += 1
+    return n

@@ -27,7 +27,7 @@ from scipy.optimize import brentq
 
 from asvtwin.checks import F8 as _F8
 from asvtwin.rl.config import EnvConfig
-from asvtwin.rl.kernels import cast_circles, filter_reach, path_features
+from asvtwin.rl.kernels import cast_circles, filter_reach, lidar_selection, path_features
 from asvtwin.rl.observation import N_NAV, action_to_tau, closeness, nav_features, ray_bearings
 from asvtwin.rl.reward import reward
 from asvtwin.rl.scenarios import N_MOVING, N_PATH, N_STATIC, Scenario, random_scenario
@@ -156,6 +156,17 @@ class VecPathEnv:
                             + f0.d_f_m)
             self._tk = np.arange(f0.config.N + 1) * f0.config.dt_s  # stage times [s]
             self._no_moving = np.zeros((n, 0, 3))
+            # lidar_circles' own settings (circle radius, sectors, returns per sector),
+            # read from its signature so the compiled selection follows them
+            import inspect
+
+            from asvtwin.control import lidar_circles
+
+            lc = inspect.signature(lidar_circles).parameters
+            self._lc_radius = float(lc["radius_m"].default)
+            self._lc_sectors = int(lc["n_sectors"].default)
+            self._lc_per = int(lc["per_sector"].default)
+            self._sel = np.empty(self._lc_sectors * self._lc_per, dtype=np.int64)
         self.reset_all()
 
     # ------------------------------------------------------------------------- reset
@@ -245,25 +256,33 @@ class VecPathEnv:
         whose every stage stays beyond the ship's reach (top speed × stage time +
         d_safe, + d_f at the end) cannot constrain the plan and is left out.
         """
-        from asvtwin.control import CircleObstacles, MovingObstacles, lidar_circles
+        from asvtwin.control import CircleObstacles, MovingObstacles
 
         cfg = self.config
         f = self.filters[i]
         pos = self.x[i, :2]
-        rays = self.ranges[i]
-        ranges = np.where(rays < cfg.lidar_range_m, rays, np.inf)
-        if cfg.setup == "ppo_psf_moving":
-            ranges = np.where(self.hit[i] >= N_STATIC, np.inf, ranges)
         out: list[Any] = []
-        if np.min(ranges) < min(cfg.psf_lidar_range_m, self._reach_m):
-            circ = lidar_circles(pos, self.x[i, 2] + self.rel, ranges,
-                                 max_range_m=cfg.psf_lidar_range_m)
-            if len(circ):
-                gap = np.hypot(*(circ.centres - pos).T) - circ.radii
-                keep = gap < self._reach_m
-                if keep.any():
-                    out.append(CircleObstacles(centres=circ.centres[keep],
-                                               radii=circ.radii[keep]))
+        # the rays whose returns become circles, chosen as lidar_circles chooses them
+        # (returns within psf_lidar_range_m, the closest per_sector per sector; a return
+        # of a moving obstacle is skipped in ppo_psf_moving), in one compiled call
+        n_sel = lidar_selection(
+            float(self.x[i, 2]), self.rel, self.ranges[i], self.hit[i],
+            N_STATIC if cfg.setup == "ppo_psf_moving" else np.iinfo(np.int64).max,
+            cfg.lidar_range_m, min(cfg.psf_lidar_range_m, self._reach_m),
+            cfg.psf_lidar_range_m, self._lc_sectors, self._lc_per, self._sel)
+        if n_sel:
+            # the circles as lidar_circles builds them: radius R, centred R behind the
+            # return along the ray (so each one's nearest point is the return)
+            sel = self._sel[:n_sel]
+            a = self.x[i, 2] + self.rel[sel]
+            r = self.ranges[i, sel]
+            R = self._lc_radius
+            centres = pos + (r + R)[:, None] * np.stack([np.cos(a), np.sin(a)], axis=1)
+            gap = np.hypot(*(centres - pos).T) - R
+            keep = gap < self._reach_m
+            if keep.any():
+                out.append(CircleObstacles(centres=centres[keep],
+                                           radii=np.full(int(keep.sum()), R)))
         if cfg.setup == "ppo_psf_moving":
             c = self.circles[i, N_STATIC:]
             m = self.moving0[i]

@@ -202,6 +202,82 @@ def test_batched_pre_cull_never_skips_an_environment_the_filter_needs(setup: str
     assert kept > 20 and skipped > 20, (kept, skipped)
 
 
+def _lidar_circles_as_before(env: VecPathEnv, i: int) -> tuple[np.ndarray, np.ndarray]:
+    """The static circles of environment i built the former way: the masked ranges
+    through :func:`asvtwin.control.lidar_circles`, then culled by reach."""
+    from asvtwin.control import lidar_circles
+    from asvtwin.rl.scenarios import N_STATIC
+
+    cfg = env.config
+    rays = env.ranges[i]
+    ranges = np.where(rays < cfg.lidar_range_m, rays, np.inf)
+    if cfg.setup == "ppo_psf_moving":
+        ranges = np.where(env.hit[i] >= N_STATIC, np.inf, ranges)
+    if not np.min(ranges) < min(cfg.psf_lidar_range_m, env._reach_m):
+        return np.zeros((0, 2)), np.zeros(0)
+    circ = lidar_circles(env.x[i, :2], env.x[i, 2] + env.rel, ranges,
+                         max_range_m=cfg.psf_lidar_range_m)
+    keep = np.hypot(*(circ.centres - env.x[i, :2]).T) - circ.radii < env._reach_m
+    return circ.centres[keep], circ.radii[keep]
+
+
+@pytest.mark.parametrize("setup", ["ppo_psf", "ppo_psf_moving"])
+def test_compiled_lidar_selection_builds_the_circles_of_lidar_circles(setup: str) -> None:
+    """The filter's static circles come from a compiled selection of the LiDAR returns
+    (:func:`asvtwin.rl.kernels.lidar_selection`); they are the circles
+    :func:`asvtwin.control.lidar_circles` builds from the same returns, in the same
+    order, bit for bit: ships at random 0-40 m from an obstacle's edge, random heading
+    (including angles that wrap), with sectors holding more returns than are kept."""
+    from asvtwin.control import CircleObstacles
+
+    env = VecPathEnv(16, EnvConfig(setup=setup, psf_horizon=40), seed=5)
+    rng = np.random.default_rng(11)
+    compared = crowded = 0
+    for _ in range(30):
+        k = rng.integers(0, 8, env.n)  # the static circles
+        c = env.static[np.arange(env.n), k]
+        ang = rng.uniform(-np.pi, np.pi, env.n)
+        dist = c[:, 2] + rng.uniform(0.5, 40, env.n)
+        env.x[:, 0] = c[:, 0] + dist * np.cos(ang)
+        env.x[:, 1] = c[:, 1] + dist * np.sin(ang)
+        env.x[:, 2] = rng.uniform(-4 * np.pi, 4 * np.pi, env.n)
+        env._sense()
+        for i in range(env.n):
+            want_c, want_r = _lidar_circles_as_before(env, i)
+            got = [o for o in env._filter_obstacles(i) if isinstance(o, CircleObstacles)]
+            assert len(got) <= 1
+            got_c = got[0].centres if got else np.zeros((0, 2))
+            got_r = got[0].radii if got else np.zeros(0)
+            assert np.array_equal(got_c, want_c) and np.array_equal(got_r, want_r), i
+            compared += len(want_r) > 0
+            crowded += len(want_r) >= 10
+    assert compared > 100 and crowded > 10, (compared, crowded)
+
+
+def test_lidar_selection_keeps_the_closest_per_sector() -> None:
+    """The selection on hand-made returns: per sector the closest, at most per_sector,
+    sectors in order, ties by ray index, moving returns and far ones skipped, and nothing
+    at all when no return is within ``lim``."""
+    from asvtwin.rl.kernels import lidar_selection
+
+    rel = np.deg2rad(np.arange(0, 360, 10.0))  # 36 rays, 9 sectors of 40 degrees: 4 each
+    r = np.full(36, 150.0)
+    r[[0, 1, 2, 3]] = [5.0, 3.0, 3.0, 4.0]  # sector 0: 1 and 2 tie, then 3, then 0
+    r[4] = 20.0  # sector 1
+    r[5] = 2.0  # sector 1, but from a moving obstacle
+    r[35] = 29.0  # sector 8
+    r[30] = 31.0  # beyond max_range
+    hit = np.zeros(36, dtype=np.int64)
+    hit[5] = 9
+    out = np.empty(27, dtype=np.int64)
+    n = lidar_selection(0.0, rel, r, hit, 8, 150.0, 30.0, 30.0, 9, 3, out)
+    assert out[:n].tolist() == [1, 2, 3, 4, 35]
+    assert lidar_selection(0.0, rel, r, hit, 8, 150.0, 2.5, 30.0, 9, 3, out) == 0
+    # rotated by one sector: the same rays land one sector later (the order changes)
+    n = lidar_selection(np.deg2rad(40.0), rel, r, hit, 8, 150.0, 30.0, 30.0, 9, 3, out)
+    assert out[:n].tolist() == [35, 1, 2, 3, 4]
+
+
 def test_filter_with_fewer_solver_slots_than_circles_keeps_d_safe_from_all() -> None:
     """The RL world gives the filter's OCP 8 circle slots and no coast slots
     (``EnvConfig.psf_solver_circles``); a ship heading into a static obstacle sees far
