@@ -300,6 +300,9 @@ class SafetyFilter:
         # 1. a plan starting with u_L: the shifted last plan, or coasting with yaw damped
         tries = self._learner_plans(x, uL, t_s)
         first = None
+        # a plan that keeps u_L safely but turns faster than the comfort bound: kept
+        # back while the solver looks for a gentler one, applied if it finds none
+        brisk: tuple | None = None
         for U in tries:
             X = self.rollout(x, U, d)
             margins, low, term, finite = self._cert.margins(X, centres, radii, segs)
@@ -307,13 +310,13 @@ class SafetyFilter:
             ok, why, path_low = self._cert.judge(margins, low, term, finite, m0, strict=True)
             if first is None:
                 first = (X, margins, term, why)
+            if ok and cfg.comfort_pass_through and not self._comfortable(X):
+                if brisk is None:
+                    brisk = (U, X, margins, term)
+                continue
             if ok:
-                self._plan = BackupPlan(u=U, x=X, t0_s=t_s, dt_s=dt)
-                self._last = (t_s, X, U)
-                self._solved_last = False
-                return self._result(x, uL, u_given, uL.copy(), X, U, margins, term, centres,
-                                    radii, segs, labels, moving, True, "u_L certified", "",
-                                    0, 0.0, Fallback.NONE, first, (), notes, passed=True)
+                return self._pass_through(x, uL, u_given, U, X, margins, term, centres,
+                                          radii, segs, labels, moving, first, notes, t_s)
         assert first is not None
         X_L, margins_L, _, _ = first
         m0 = margins_L[0]
@@ -361,6 +364,16 @@ class SafetyFilter:
                 if cert:
                     break
             self._solved_last = True
+            if brisk is not None and not (best is not None and best[4]
+                                          and self._comfortable(best[0])):
+                # the solver found no gentler certified plan: keep u_L (certified)
+                notes.append("the plan that keeps u_L turns faster than the comfort bound "
+                             f"({float(np.max(np.abs(brisk[1][2:, 5]))):.3g} rad/s against "
+                             f"{float(self.nu_max[2]):.3g}); no gentler certified plan found")
+                U_b, X_b, m_b, term_b = brisk
+                return self._pass_through(x, uL, u_given, U_b, X_b, m_b, term_b, centres,
+                                          radii, segs, labels, moving, first, notes, t_s,
+                                          solved=True, iters=iters, t_solve=t_solve)
             if best is not None and best[4]:
                 chosen_kind = Fallback.NONE
                 break
@@ -386,6 +399,28 @@ class SafetyFilter:
                             radii, segs, labels, moving, cert, status, reason, iters,
                             t_solve, chosen_kind, first, tuple(scored), notes,
                             detail=chosen_detail)
+
+    def _pass_through(self, x: _F8, uL: _F8, u_given: _F8, U: _F8, X: _F8, margins: _F8,
+                      term: float, centres: _F8, radii: _F8, segs: _F8, labels: list[str],
+                      moving: NDArray[np.bool_], first: tuple, notes: list[str], t_s: float,
+                      *, solved: bool = False, iters: int = 0,
+                      t_solve: float = 0.0) -> FilterResult:
+        """Apply u_L, certified by the plan ``U`` that starts with it."""
+        self._plan = BackupPlan(u=U, x=X, t0_s=t_s, dt_s=self.config.dt_s)
+        if not solved:
+            self._last = (t_s, X, U)
+        self._solved_last = solved
+        return self._result(x, uL, u_given, uL.copy(), X, U, margins, term, centres, radii,
+                            segs, labels, moving, True, "u_L certified", "", iters, t_solve,
+                            Fallback.NONE, first, (), notes, passed=True)
+
+    def _comfortable(self, X: _F8) -> bool:
+        """Whether the plan after u_L's step turns no faster than the comfort bound
+        ν_max,r (5 % tolerance), or than u_L's step left the ship turning."""
+        if X.shape[0] < 3:
+            return True
+        r_ok = max(float(self.nu_max[2]) * (1.0 + _COMFORT_TOL), abs(float(X[1, 5])))
+        return float(np.max(np.abs(X[2:, 5]))) <= r_ok
 
     def _learner_plans(self, x: _F8, uL: _F8, t_s: float) -> list[_F8]:
         """Input sequences that start with u_L: u_L then the last plan's remainder, and

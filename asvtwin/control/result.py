@@ -89,6 +89,7 @@ class PsfConfig:
     cold_start_solves: int = 5
     uncertified_retries: int = 1
     colreg: bool = True
+    comfort_pass_through: bool = True
 
     def __post_init__(self) -> None:
         checks: list[tuple[str, bool, str]] = [

@@ -234,3 +234,70 @@ def test_auto_backend_falls_back_to_ipopt_when_acados_cannot_build(monkeypatch):
     assert f.backend.name == "casadi-ipopt"
     with pytest.raises(SolverError):  # an explicit choice is not silently replaced
         SafetyFilter(cybership2(), config=PsfConfig(N=40, backend="acados"))
+
+
+def _rock_then_brisk_tail(psf):
+    """A rock 8 m ahead makes the first call turn hard; the next call's plan that keeps
+    u_L (full ahead, then that turn's remainder) is safe but turns faster than ν_max,r."""
+    psf.reset()
+    x = np.array([0.0, 0.0, 0.0, 0.55, 0.0, 0.0])
+    psf.filter(x, [1.0, 0, 0], None, t_s=0.0)
+    rock = CircleObstacles([[9.0, 0.0]], [1.0], ids=["rock 7"])
+    first = psf.filter(x, [1.0, 0, 0], rock, t_s=0.5)
+    assert first.intervened and np.abs(first.x_pred[2:, 5]).max() > 1.5 * psf.nu_max[2]
+    return psf.rollout(x, first.u_pred)[1], rock
+
+
+def test_a_brisk_plan_keeping_u_l_sends_the_filter_to_the_solver_first(psf):
+    """comfort_pass_through: u_L whose only certified continuation turns faster than the
+    comfort bound is kept only after the solver found no gentler certified plan."""
+    x, rock = _rock_then_brisk_tail(psf)
+    inner = psf.backend
+    calls = []
+
+    class _Counting(_Raising):
+        def solve(self, *a):
+            calls.append(1)
+            return self.inner.solve(*a)
+
+    psf.backend = _Counting(inner, None)
+    try:
+        res = psf.filter(x, [1.0, 0, 0], rock, t_s=1.0)
+    finally:
+        psf.backend = inner
+    assert calls  # the solver was asked although a certified plan kept u_L
+    if res.passed_through:  # no gentler plan: u_L kept, and the explanation says why
+        assert "comfort bound" in res.explanation and res.fallback == "none"
+    else:  # a gentler certified plan was found and applied
+        assert res.fallback == "none" and res.success
+        assert np.abs(res.x_pred[2:, 5]).max() <= max(
+            1.05 * psf.nu_max[2], abs(res.x_pred[1, 5]))
+
+
+def test_a_failing_solver_keeps_the_brisk_but_certified_u_l(psf):
+    """The solver raises: u_L is still certified by its brisk plan, so it is applied (no
+    fallback manoeuvre replaces a certified input)."""
+    x, rock = _rock_then_brisk_tail(psf)
+    inner = psf.backend
+    psf.backend = _Raising(inner, ValueError("solver down"))
+    try:
+        res = psf.filter(x, [1.0, 0, 0], rock, t_s=1.0)
+    finally:
+        psf.backend = inner
+        psf.reset()
+    assert res.passed_through and res.fallback == "none"
+    np.testing.assert_allclose(res.u0, [1.0, 0, 0])
+    assert "no gentler certified plan" in res.explanation
+
+
+def test_without_comfort_pass_through_the_brisk_plan_keeps_u_l_without_a_solve(params):
+    psf = SafetyFilter(params, config=PsfConfig(backend=available_backends()[0],
+                                                comfort_pass_through=False))
+    x, rock = _rock_then_brisk_tail(psf)
+    inner = psf.backend
+    psf.backend = _Raising(inner, AssertionError("no solve expected"))
+    try:
+        res = psf.filter(x, [1.0, 0, 0], rock, t_s=1.0)
+    finally:
+        psf.backend = inner
+    assert res.passed_through and "comfort" not in res.explanation

@@ -39,6 +39,7 @@ from asvtwin.control.backends.ocp import (
     OcpSpec,
     cache_dir,
     continuous_dynamics,
+    input_scale,
     path_constraints,
     terminal_constraints,
 )
@@ -96,7 +97,8 @@ class AcadosBackend:
         Largest number of RTI steps per call (more are run only while the primal step
         is larger than ``step_tol``).
     step_tol : float
-        Infinity norm of the SQP step below which no further RTI step is taken.
+        Infinity norm of the SQP step in the inputs, as a fraction of each actuator's
+        bound, below which no further RTI step is taken.
     """
 
     def __init__(self, spec: OcpSpec, *, rti_steps: int = 1, step_tol: float = 1e-3) -> None:
@@ -114,6 +116,12 @@ class AcadosBackend:
         s = spec
         vessel = s.vessel
         f = continuous_dynamics(vessel)
+        # the solver's inputs are scaled to O(1) (u = S·u_s, S the larger actuator bound):
+        # in newtons and newton-metres the cost weights 1/range² are ~1e-12 for an 88 m
+        # hull, and the QP's Levenberg-Marquardt term (1e-4 per unit²) then outweighed
+        # the whole cost: each RTI step moved u by a few N·m and the full-scale solver
+        # stood still (its plans were its warm starts)
+        self._S = input_scale(s.u_lb, s.u_ub)
         x = ca.SX.sym("x", 6)
         u = ca.SX.sym("u", 3)
         p = ca.SX.sym("p", s.n_p)
@@ -121,7 +129,7 @@ class AcadosBackend:
         model = AcadosModel()
         model.name = f"asvtwin_psf_{s.key()}"
         model.x, model.u, model.p, model.xdot = x, u, p, xdot
-        model.f_expl_expr = f(x, u, p[0:3])  # eq. (a), d̂ as parameter
+        model.f_expl_expr = f(x, ca.DM(self._S) * u, p[0:3])  # eq. (a), d̂ as parameter
         model.f_impl_expr = xdot - model.f_expl_expr
         model.con_h_expr = path_constraints(s)(x, p)  # eq. (e)
         model.con_h_expr_e = terminal_constraints(s)(x, p)  # eq. (f), (g)
@@ -135,14 +143,14 @@ class AcadosBackend:
         ocp.cost.cost_type_e = "LINEAR_LS"
         ocp.cost.Vx = np.zeros((3, 6))
         ocp.cost.Vu = np.eye(3)
-        ocp.cost.W = np.diag(s.W) * s.later_weight
+        ocp.cost.W = np.diag(np.asarray(s.W) * self._S ** 2) * s.later_weight
         ocp.cost.yref = np.zeros(3)
         ocp.cost.Vx_e = np.zeros((0, 6))
         ocp.cost.W_e = np.zeros((0, 0))
         ocp.cost.yref_e = np.zeros(0)
         # eq. (d): hard input bounds
-        ocp.constraints.lbu = np.asarray(s.u_lb, dtype=float)
-        ocp.constraints.ubu = np.asarray(s.u_ub, dtype=float)
+        ocp.constraints.lbu = np.asarray(s.u_lb, dtype=float) / self._S
+        ocp.constraints.ubu = np.asarray(s.u_ub, dtype=float) / self._S
         ocp.constraints.idxbu = np.arange(3)
         ocp.constraints.x0 = np.zeros(6)  # eq. (b)
         # eq. (c): soft velocity bounds on stages 1..N
@@ -187,7 +195,8 @@ class AcadosBackend:
         # the generated code depends on the problem, the solver options and the acados
         # version: all three name its cache folder
         opt_key = hashlib.sha256(json.dumps(
-            [solver_options, getattr(acados, "__version__", "")], sort_keys=True
+            [solver_options, getattr(acados, "__version__", ""), "inputs scaled",
+             self._S.tolist()], sort_keys=True
         ).encode()).hexdigest()[:8]
         root = cache_dir() / f"acados_{s.key()}_{opt_key}"
         root.mkdir(parents=True, exist_ok=True)
@@ -219,7 +228,7 @@ class AcadosBackend:
             log.info("acados solver generated and compiled in %.1f s (%s)",
                      time.perf_counter() - t0, root)
         self._bind_fast_access(model.name)
-        W0 = np.diag(s.W)
+        W0 = np.diag(np.asarray(s.W) * self._S ** 2)
         self._solver.cost_set(0, "W", W0)
         for k in range(1, s.N):
             self._solver.cost_set(k, "W", W0 * s.later_weight)
@@ -248,27 +257,29 @@ class AcadosBackend:
         """Up to ``rti_steps`` SQP-RTI steps; see :class:`~.base.Backend`."""
         io = self._io
         self._x0[:] = x0  # eq. (b)
-        self._yref[:] = u_L
+        np.divide(u_L, self._S, out=self._yref)
         self._P[:] = stage_params
         self._Xg[:] = x_guess
         np.clip(u_guess, self._lb, self._ub, out=self._Ug)
+        self._Ug /= self._S
         io.load(self._x0, self._yref, self._P, self._Xg, self._Ug)
         t0 = time.perf_counter()
         status, qp_status, iters = 0, 0, 0
-        prev_u = self._Ug
+        prev_u = self._Ug.copy()
         for _ in range(self.rti_steps):
             status = io.solve()
             iters += 1
             qp_status = self._qp_status() if status == 0 else status
             if status != 0 or qp_status != 0 or self.rti_steps == 1:
                 break
-            U = io.read_u().copy()
+            U = io.read_u().copy()  # scaled: the step is a fraction of the actuator bound
             step = float(np.max(np.abs(U - prev_u)))
             prev_u = U
             if step < self.step_tol:
                 break
         dt = time.perf_counter() - t0
         X, U = io.read()
+        U = U * self._S
         ok = status == 0 and qp_status == 0 and bool(np.all(np.isfinite(U)))
         word = "ok" if ok else f"acados status {status}, QP status {qp_status}"
         if not ok:

@@ -29,6 +29,7 @@ from asvtwin.control.backends.ocp import (
     OcpSpec,
     cache_dir,
     discrete_dynamics,
+    input_scale,
     path_constraints,
     terminal_constraints,
 )
@@ -83,6 +84,10 @@ class CasadiBackend:
         HN = terminal_constraints(s)
         W = ca.DM(np.diag(s.W))
         nu_max = ca.DM(s.nu_max)
+        # inputs scaled to O(1), u = S·u_s (as the acados backend): in newtons and
+        # newton-metres an 88 m hull's cost gradient is ~1e-6, below IPOPT's tolerances
+        self._S = input_scale(s.u_lb, s.u_ub)
+        S = ca.DM(self._S)
 
         P = ca.SX.sym("P", 9 + (N + 1) * s.n_p)
         uL = P[6:9]  # P[0:6] holds x0 for the record; x0 is fixed through the bounds
@@ -122,7 +127,9 @@ class CasadiBackend:
                 self._is.append(sl)
                 J += s.slack_l1 * ca.sum1(Sk) + s.slack_l2 * ca.sumsqr(Sk)
             if k < N:
-                Uk, sl = var(f"u{k}", 3, list(s.u_lb), list(s.u_ub))  # eq. (d), hard
+                Uk, sl = var(f"u{k}", 3, list(np.asarray(s.u_lb) / self._S),
+                             list(np.asarray(s.u_ub) / self._S))  # eq. (d), hard
+                Uk = S * Uk  # the physical input
                 Us.append(Uk)
                 self._iu.append(sl)
                 du = Uk - uL
@@ -187,7 +194,7 @@ class CasadiBackend:
 
     def _compiled(self, nlp: dict) -> Path:
         """Generate the NLP's functions as C and compile them once (cached by spec hash)."""
-        root = cache_dir() / f"casadi_{self._solver_name}_{self.spec.key()}"
+        root = cache_dir() / f"casadi_{self._solver_name}_{self.spec.key()}_scaled"
         lib = root / "psf_nlp.so"
         if lib.exists():
             return lib
@@ -223,7 +230,7 @@ class CasadiBackend:
         for k in range(s.N + 1):
             w0[self._ix[k]] = x_guess[k]
         for k in range(s.N):
-            w0[self._iu[k]] = np.clip(u_guess[k], s.u_lb, s.u_ub)
+            w0[self._iu[k]] = np.clip(u_guess[k], s.u_lb, s.u_ub) / self._S
         p = np.concatenate([x0, u_L, stage_params.ravel()])
         args = {"x0": w0, "p": p, "lbx": lbw, "ubx": ubw, "lbg": self._lbg, "ubg": self._ubg}
         t0 = time.perf_counter()
@@ -232,7 +239,7 @@ class CasadiBackend:
         stats = self._solver.stats()
         wopt = np.asarray(sol["x"]).ravel()
         X = np.stack([wopt[self._ix[k]] for k in range(s.N + 1)])
-        U = np.stack([wopt[self._iu[k]] for k in range(s.N)])
+        U = np.stack([wopt[self._iu[k]] for k in range(s.N)]) * self._S
         slack = max(float(np.max(wopt[sl])) for sl in self._is)
         status = str(stats.get("return_status", "unknown"))
         success = bool(stats.get("success", False)) or status in (

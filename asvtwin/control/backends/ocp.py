@@ -35,7 +35,7 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from asvtwin.vessel.params import VesselParams
 
@@ -231,3 +231,10 @@ def terminal_constraints(spec: OcpSpec) -> ca.Function:
     # eq. (OCP)(g): terminal ellipsoid ν_Nᵀ P_f ν_N ≤ 1
     g = 1.0 - ca.mtimes([nu.T, ca.DM(spec.P_f_matrix), nu])
     return ca.Function("h_term", [x, pk], [ca.vertcat(h, g)], ["x", "p"], ["h"])
+
+
+def input_scale(u_lb: ArrayLike, u_ub: ArrayLike) -> NDArray[np.float64]:
+    """Per-DOF scale of the solver's inputs: the larger actuator bound in magnitude (1
+    for a DOF without actuation)."""
+    S = np.maximum(np.abs(np.asarray(u_lb, dtype=float)), np.abs(np.asarray(u_ub, dtype=float)))
+    return np.where(S > 0, S, 1.0)
