@@ -21,7 +21,8 @@ Each :class:`EncounterCase` is written at model scale (CyberShip II, L = 1.255 m
   job), so these cases score safety only (``goal_expected`` False).
 
 :func:`run_encounter` drives the own ship with a path-following learner (the
-project's LOS guidance and heading/speed autopilot, at cruise speed along the route)
+project's LOS guidance with a lookahead of 5 ship lengths and heading/speed autopilot
+without crab compensation, at cruise speed along the route)
 through the filter on the project's simulator (thruster lag included), the filter
 seeing ground-truth constant-velocity predictions of the targets (ids "track 1..n"),
 every static obstacle and the coast within 30 ship lengths.
@@ -239,14 +240,20 @@ class EncounterRun:
 def run_encounter(case: EncounterCase, params: VesselParams, psf: SafetyFilter | None, *,
                   sim_substeps: int = 5) -> EncounterRun:
     """Drive the case with the path-following learner through ``psf`` (None: unfiltered)."""
-    from asvtwin.guidance import HeadingSpeedAutopilot, LosGuidance
+    from asvtwin.guidance import AutopilotGains, HeadingSpeedAutopilot, LosGuidance
 
     c = case.scaled(params.length) if abs(case.length_m - params.length) > 1e-9 else case
     L = params.length
     dt = psf.config.dt_s if psf is not None else 0.5 * math.sqrt(L / L_MODEL)
     N = psf.config.N if psf is not None else 0
-    los = LosGuidance(c.route, lookahead_m=3.0 * L, acceptance_radius_m=2.0 * L)
-    ap = HeadingSpeedAutopilot(params)
+    # lookahead 5 L: longer than the turning radius at the autopilot's rate limit
+    # (cruise / r_max = 0.3 / 0.08 ≈ 3 L at model scale), under which LOS weaves; with
+    # 3 L the ship, pushed off its route by an avoidance, swung ±250 m about it at full
+    # scale and missed 3 goals of 25. No crab compensation: there is no current here,
+    # and removing the sideslip of a turn from the heading reference delays the recovery
+    los = LosGuidance(c.route, lookahead_m=5.0 * L, acceptance_radius_m=2.0 * L)
+    ap = HeadingSpeedAutopilot(params, replace(AutopilotGains.for_vessel(params),
+                                               crab_compensation=False))
     sim = VesselSimulator(params, c.x0, dt_s=dt / sim_substeps)
     if psf is not None:
         psf.reset()
