@@ -68,6 +68,16 @@ class PsfConfig:
         Prefer the starboard side where COLREG rules 14, 15 and 17(c) expect it: the
         solver is warm-started from a starboard turn when a head-on or crossing vessel
         (classified from the moving obstacles) makes the learner's plan unsafe.
+    comfort_pass_through : bool
+        Keep u_L only when the plan that certifies it turns no faster than the comfort
+        bound ν_max,r after u_L's own step (or than that step left it, if faster);
+        otherwise ask the solver for a gentler certified plan first, and keep u_L (it is
+        certified) only if there is none. Starts an avoidance while a gentle turn still
+        suffices. u_L itself is never judged by the bound: in open water nothing changes.
+        Off by default: it cut the encounter set's avoidance yaw rates and fallbacks, but
+        the twin's benchmark scene fell back more (5 against at most 2 in its short run)
+        and so did the current-aware filter of the observer's closed-loop study
+        (docs/psf.md).
     """
 
     N: int = 50
@@ -89,7 +99,7 @@ class PsfConfig:
     cold_start_solves: int = 5
     uncertified_retries: int = 1
     colreg: bool = True
-    comfort_pass_through: bool = True
+    comfort_pass_through: bool = False
 
     def __post_init__(self) -> None:
         checks: list[tuple[str, bool, str]] = [

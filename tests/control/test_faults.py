@@ -248,9 +248,15 @@ def _rock_then_brisk_tail(psf):
     return psf.rollout(x, first.u_pred)[1], rock
 
 
-def test_a_brisk_plan_keeping_u_l_sends_the_filter_to_the_solver_first(psf):
+def _comfort(params):
+    return SafetyFilter(params, config=PsfConfig(backend=available_backends()[0],
+                                                 comfort_pass_through=True))
+
+
+def test_a_brisk_plan_keeping_u_l_sends_the_filter_to_the_solver_first(params):
     """comfort_pass_through: u_L whose only certified continuation turns faster than the
     comfort bound is kept only after the solver found no gentler certified plan."""
+    psf = _comfort(params)
     x, rock = _rock_then_brisk_tail(psf)
     inner = psf.backend
     calls = []
@@ -274,9 +280,10 @@ def test_a_brisk_plan_keeping_u_l_sends_the_filter_to_the_solver_first(psf):
             1.05 * psf.nu_max[2], abs(res.x_pred[1, 5]))
 
 
-def test_a_failing_solver_keeps_the_brisk_but_certified_u_l(psf):
+def test_a_failing_solver_keeps_the_brisk_but_certified_u_l(params):
     """The solver raises: u_L is still certified by its brisk plan, so it is applied (no
     fallback manoeuvre replaces a certified input)."""
+    psf = _comfort(params)
     x, rock = _rock_then_brisk_tail(psf)
     inner = psf.backend
     psf.backend = _Raising(inner, ValueError("solver down"))
@@ -290,9 +297,8 @@ def test_a_failing_solver_keeps_the_brisk_but_certified_u_l(psf):
     assert "no gentler certified plan" in res.explanation
 
 
-def test_without_comfort_pass_through_the_brisk_plan_keeps_u_l_without_a_solve(params):
-    psf = SafetyFilter(params, config=PsfConfig(backend=available_backends()[0],
-                                                comfort_pass_through=False))
+def test_without_comfort_pass_through_the_brisk_plan_keeps_u_l_without_a_solve(psf):
+    """The default (comfort_pass_through off): the brisk plan keeps u_L at once."""
     x, rock = _rock_then_brisk_tail(psf)
     inner = psf.backend
     psf.backend = _Raising(inner, AssertionError("no solve expected"))
