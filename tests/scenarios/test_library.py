@@ -189,15 +189,6 @@ KNOWN_MISSES = {
                      "ship behind its grown clearance circles (fallbacks from ~660 s); "
                      "1.2 km short of the goal at the end (2026-11-30, and 2026-12-01 with a "
                      "45° bounded return)")),
-    "trondheim_harbour_approach": (
-        ("goal_reached", "min_distance_land"),
-        ("quay approach not reached and 84 m from land (criterion 88 m): with the tracker's "
-        "depth persistence as a time (3 s; 0.3 s at 10 Hz before) the near-coast tracks are "
-        "consistent (NEES 3.24 against 24.4, RMSE 6.6 against 15.3 m) and their clearance "
-        "circles larger, the filter falls back on 915 of 4000 calls (369 before) and its "
-        "fallback turns take the ship to 84 m of land; with the old, over-confident "
-        "persistence every criterion passed (120 m, goal). Before that (2026-11-30) the "
-        "route monitor skipped a leg 800 m off it (2026-12-01)")),
 }
 
 
