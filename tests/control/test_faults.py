@@ -236,6 +236,16 @@ def test_auto_backend_falls_back_to_ipopt_when_acados_cannot_build(monkeypatch):
         SafetyFilter(cybership2(), config=PsfConfig(N=40, backend="acados"))
 
 
+def _call_with(psf, backend, x, obs, t_s):
+    """One full-ahead call with ``backend`` swapped in (the filter's state kept)."""
+    inner = psf.backend
+    psf.backend = backend
+    try:
+        return psf.filter(x, [1.0, 0, 0], obs, t_s=t_s)
+    finally:
+        psf.backend = inner
+
+
 def _rock_then_brisk_tail(psf):
     """A rock 8 m ahead makes the first call turn hard; the next call's plan that keeps
     u_L (full ahead, then that turn's remainder) is safe but turns faster than ν_max,r."""
@@ -258,7 +268,6 @@ def test_a_brisk_plan_keeping_u_l_sends_the_filter_to_the_solver_first(params):
     comfort bound is kept only after the solver found no gentler certified plan."""
     psf = _comfort(params)
     x, rock = _rock_then_brisk_tail(psf)
-    inner = psf.backend
     calls = []
 
     class _Counting(_Raising):
@@ -266,11 +275,7 @@ def test_a_brisk_plan_keeping_u_l_sends_the_filter_to_the_solver_first(params):
             calls.append(1)
             return self.inner.solve(*a)
 
-    psf.backend = _Counting(inner, None)
-    try:
-        res = psf.filter(x, [1.0, 0, 0], rock, t_s=1.0)
-    finally:
-        psf.backend = inner
+    res = _call_with(psf, _Counting(psf.backend, None), x, rock, 1.0)
     assert calls  # the solver was asked although a certified plan kept u_L
     if res.passed_through:  # no gentler plan: u_L kept, and the explanation says why
         assert "comfort bound" in res.explanation and res.fallback == "none"
@@ -285,13 +290,7 @@ def test_a_failing_solver_keeps_the_brisk_but_certified_u_l(params):
     fallback manoeuvre replaces a certified input)."""
     psf = _comfort(params)
     x, rock = _rock_then_brisk_tail(psf)
-    inner = psf.backend
-    psf.backend = _Raising(inner, ValueError("solver down"))
-    try:
-        res = psf.filter(x, [1.0, 0, 0], rock, t_s=1.0)
-    finally:
-        psf.backend = inner
-        psf.reset()
+    res = _call_with(psf, _Raising(psf.backend, ValueError("solver down")), x, rock, 1.0)
     assert res.passed_through and res.fallback == "none"
     np.testing.assert_allclose(res.u0, [1.0, 0, 0])
     assert "no gentler certified plan" in res.explanation
@@ -300,10 +299,6 @@ def test_a_failing_solver_keeps_the_brisk_but_certified_u_l(params):
 def test_without_comfort_pass_through_the_brisk_plan_keeps_u_l_without_a_solve(psf):
     """The default (comfort_pass_through off): the brisk plan keeps u_L at once."""
     x, rock = _rock_then_brisk_tail(psf)
-    inner = psf.backend
-    psf.backend = _Raising(inner, AssertionError("no solve expected"))
-    try:
-        res = psf.filter(x, [1.0, 0, 0], rock, t_s=1.0)
-    finally:
-        psf.backend = inner
+    res = _call_with(psf, _Raising(psf.backend, AssertionError("no solve expected")), x, rock,
+                     1.0)
     assert res.passed_through and "comfort" not in res.explanation
