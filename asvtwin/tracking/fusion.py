@@ -73,6 +73,38 @@ def _add_information(Y, y, H, R, z, Ri, work):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
+def _product_row(x, P, zL, RL, hL, HL, zA, RA, hA, HA, k, xo, Po, Y, Pn, w4, y, RiL, wL, RiA, wA):  # type: ignore[no-untyped-def]
+    """The product of target ``k``'s prior and its measurements into ``xo[k]``, ``Po[k]``
+    (left alone when neither sensor measured it); the other arrays are scratch.
+    :func:`_product_kernel` and the tracker's fused kernel share it."""
+    if not (hL[k] or hA[k]):
+        return  # case: neither sensor -> N(x, P)
+    inv_into(P[k], Y, w4)  # prior information P^-1
+    for i in range(4):
+        acc = 0.0
+        for j in range(4):
+            acc += Y[i, j] * x[k, j]
+        y[i] = acc
+    if hL[k]:
+        _add_information(Y, y, HL, RL[k], zL[k], RiL, wL)
+    if hA[k]:
+        _add_information(Y, y, HA, RA[k], zA[k], RiA, wA)
+    for i in range(4):
+        for j in range(i + 1, 4):
+            v = 0.5 * (Y[i, j] + Y[j, i])
+            Y[i, j] = v
+            Y[j, i] = v
+    inv_into(Y, Pn, w4)
+    for i in range(4):
+        acc = 0.0
+        for j in range(4):
+            v = 0.5 * (Pn[i, j] + Pn[j, i])
+            Po[k, i, j] = v
+            acc += v * y[j]
+        xo[k, i] = acc
+
+
+@njit(cache=True)
 def _product_kernel(x, P, zL, RL, hL, HL, zA, RA, hA, HA):  # type: ignore[no-untyped-def]
     n = x.shape[0]
     xo = x.copy()
@@ -84,31 +116,7 @@ def _product_kernel(x, P, zL, RL, hL, HL, zA, RA, hA, HA):  # type: ignore[no-un
     RiL, wL = np.empty((HL.shape[0], HL.shape[0])), np.empty((HL.shape[0], HL.shape[0]))
     RiA, wA = np.empty((HA.shape[0], HA.shape[0])), np.empty((HA.shape[0], HA.shape[0]))
     for k in range(n):
-        if not (hL[k] or hA[k]):
-            continue  # case: neither sensor -> N(x, P)
-        inv_into(P[k], Y, w4)  # prior information P^-1
-        for i in range(4):
-            acc = 0.0
-            for j in range(4):
-                acc += Y[i, j] * x[k, j]
-            y[i] = acc
-        if hL[k]:
-            _add_information(Y, y, HL, RL[k], zL[k], RiL, wL)
-        if hA[k]:
-            _add_information(Y, y, HA, RA[k], zA[k], RiA, wA)
-        for i in range(4):
-            for j in range(i + 1, 4):
-                v = 0.5 * (Y[i, j] + Y[j, i])
-                Y[i, j] = v
-                Y[j, i] = v
-        inv_into(Y, Pn, w4)
-        for i in range(4):
-            acc = 0.0
-            for j in range(4):
-                v = 0.5 * (Pn[i, j] + Pn[j, i])
-                Po[k, i, j] = v
-                acc += v * y[j]
-            xo[k, i] = acc
+        _product_row(x, P, zL, RL, hL, HL, zA, RA, hA, HA, k, xo, Po, Y, Pn, w4, y, RiL, wL, RiA, wA)
     return xo, Po
 
 

@@ -89,6 +89,78 @@ def _predict_kernel(x, P, dt, q):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
+def _update_row(x, P, z, R, H, k, xo, Po, Ko, So, yo, o, PHt, Si, work, A, B):  # type: ignore[no-untyped-def]
+    """Joseph-form update of target ``k`` of ``x``/``P``/``z``/``R`` into row ``o`` of
+    ``xo``/``Po``/``Ko``/``So``/``yo`` (``PHt`` (4, m), ``Si``, ``work`` (m, m), ``A``,
+    ``B`` (4, 4) are scratch); returns the NIS. :func:`_update_kernel` and the tracker's
+    fused kernels share it, so their arithmetic is one."""
+    m = H.shape[0]
+    # y = z - H x
+    for i in range(m):
+        acc = z[k, i]
+        for j in range(4):
+            acc -= H[i, j] * x[k, j]
+        yo[o, i] = acc
+    # S = H P H^T + R
+    for i in range(4):
+        for j in range(m):
+            acc = 0.0
+            for l in range(4):
+                acc += P[k, i, l] * H[j, l]
+            PHt[i, j] = acc
+    for i in range(m):
+        for j in range(m):
+            acc = 0.5 * (R[k, i, j] + R[k, j, i])
+            for l in range(4):
+                acc += 0.5 * (H[i, l] * PHt[l, j] + H[j, l] * PHt[l, i])
+            So[o, i, j] = acc
+    # K = P H^T S^-1
+    inv_into(So[o], Si, work)
+    for i in range(4):
+        for j in range(m):
+            acc = 0.0
+            for l in range(m):
+                acc += PHt[i, l] * Si[l, j]
+            Ko[o, i, j] = acc
+    # x = x + K y
+    for i in range(4):
+        acc = x[k, i]
+        for j in range(m):
+            acc += Ko[o, i, j] * yo[o, j]
+        xo[o, i] = acc
+    # P = (I - K H) P (I - K H)^T + K R K^T   (Joseph form); A = I - K H
+    for i in range(4):
+        for j in range(4):
+            acc = 1.0 if i == j else 0.0
+            for l in range(m):
+                acc -= Ko[o, i, l] * H[l, j]
+            A[i, j] = acc
+    for i in range(4):  # B = A P
+        for j in range(4):
+            acc = 0.0
+            for l in range(4):
+                acc += A[i, l] * P[k, l, j]
+            B[i, j] = acc
+    for i in range(4):
+        for j in range(i, 4):
+            acc = 0.0
+            for l in range(4):
+                acc += B[i, l] * A[j, l]
+            for a in range(m):
+                kr = 0.0
+                for b in range(m):
+                    kr += R[k, a, b] * Ko[o, j, b]
+                acc += Ko[o, i, a] * kr
+            Po[o, i, j] = acc
+            Po[o, j, i] = acc
+    acc = 0.0
+    for i in range(m):
+        for j in range(m):
+            acc += yo[o, i] * Si[i, j] * yo[o, j]
+    return acc
+
+
+@njit(cache=True)
 def _update_kernel(x, P, z, R, H):  # type: ignore[no-untyped-def]
     n, m = x.shape[0], H.shape[0]
     xo = np.empty_like(x)
@@ -103,69 +175,7 @@ def _update_kernel(x, P, z, R, H):  # type: ignore[no-untyped-def]
     A = np.empty((4, 4))
     B = np.empty((4, 4))
     for k in range(n):
-        # y = z - H x
-        for i in range(m):
-            acc = z[k, i]
-            for j in range(4):
-                acc -= H[i, j] * x[k, j]
-            yo[k, i] = acc
-        # S = H P H^T + R
-        for i in range(4):
-            for j in range(m):
-                acc = 0.0
-                for l in range(4):
-                    acc += P[k, i, l] * H[j, l]
-                PHt[i, j] = acc
-        for i in range(m):
-            for j in range(m):
-                acc = 0.5 * (R[k, i, j] + R[k, j, i])
-                for l in range(4):
-                    acc += 0.5 * (H[i, l] * PHt[l, j] + H[j, l] * PHt[l, i])
-                So[k, i, j] = acc
-        # K = P H^T S^-1
-        inv_into(So[k], Si, work)
-        for i in range(4):
-            for j in range(m):
-                acc = 0.0
-                for l in range(m):
-                    acc += PHt[i, l] * Si[l, j]
-                Ko[k, i, j] = acc
-        # x = x + K y
-        for i in range(4):
-            acc = x[k, i]
-            for j in range(m):
-                acc += Ko[k, i, j] * yo[k, j]
-            xo[k, i] = acc
-        # P = (I - K H) P (I - K H)^T + K R K^T   (Joseph form); A = I - K H
-        for i in range(4):
-            for j in range(4):
-                acc = 1.0 if i == j else 0.0
-                for l in range(m):
-                    acc -= Ko[k, i, l] * H[l, j]
-                A[i, j] = acc
-        for i in range(4):  # B = A P
-            for j in range(4):
-                acc = 0.0
-                for l in range(4):
-                    acc += A[i, l] * P[k, l, j]
-                B[i, j] = acc
-        for i in range(4):
-            for j in range(i, 4):
-                acc = 0.0
-                for l in range(4):
-                    acc += B[i, l] * A[j, l]
-                for a in range(m):
-                    kr = 0.0
-                    for b in range(m):
-                        kr += R[k, a, b] * Ko[k, j, b]
-                    acc += Ko[k, i, a] * kr
-                Po[k, i, j] = acc
-                Po[k, j, i] = acc
-        acc = 0.0
-        for i in range(m):
-            for j in range(m):
-                acc += yo[k, i] * Si[i, j] * yo[k, j]
-        nis[k] = acc
+        nis[k] = _update_row(x, P, z, R, H, k, xo, Po, Ko, So, yo, k, PHt, Si, work, A, B)
     return xo, Po, Ko, So, yo, nis
 
 

@@ -43,7 +43,6 @@ from asvtwin.tracking.association import FORBIDDEN, gate_threshold, gated_costs,
 from asvtwin.tracking.clustering import Clusters, cluster_scan, split_clusters
 from asvtwin.tracking.config import TrackerConfig
 from asvtwin.tracking.fusion import (
-    _product_kernel,
     fuse_covariance_intersection,
     fuse_gain_weighted,
 )
@@ -60,11 +59,12 @@ from asvtwin.tracking.measurement import (
 )
 from asvtwin.tracking.snapshot import TRACK_STATUS, TrackSnapshot
 from asvtwin.tracking.tracker_kernels import (
+    bookkeeping,
     coincident,
     near_tracks,
     pair_measurements,
     position_mahalanobis,
-    update_rows,
+    update_and_fuse,
 )
 
 __all__ = ["Tracker", "VesselDimensions"]
@@ -355,36 +355,21 @@ class Tracker:
                 free[cols] = False
                 ais_new[uj[free]] = True
 
-        # 4. updater
-        gotL, gotA = a["gotL"], a["gotA"]
-        self._update_sensor_filters(zL, RL, zA, RA)
-        if cfg.fusion == "product":  # fuse_product's kernel: zL/RL, zA/RA are finite, 0/I where absent
-            a["x"], a["P"] = _product_kernel(a["x"], a["P"], zL, RL, gotL, H_POSITION, zA, RA, gotA, H_FULL)
-        else:
+        # 4. updater, 5. confirmation, 6. deleter: one pass each over the tracks
+        v2 = self.config.init_velocity_std_m_s ** 2
+        product = cfg.fusion == "product"  # fuse_product's arithmetic: zL/RL, zA/RA are finite, 0/I where absent
+        update_and_fuse(a["x"], a["P"], a["xL"], a["PL"], a["GL"], a["hasL"], a["tL"], a["gotL"], zL, RL, H_POSITION,
+                        a["xA"], a["PA"], a["GA"], a["hasA"], a["tA"], a["gotA"], zA, RA, H_FULL, t, v2, product)
+        if not product:
             self._fuse_filters(t)
-        hit = gotL | gotA
-        mask_n = (1 << cfg.confirm_n) - 1
-        a["hist"] = ((a["hist"] << 1) | hit.astype(np.int64)) & mask_n
-        a["age"] += 1
-        a["n_ais"] += gotA
-        a["t_last"][hit] = t
-        fa = ~np.isnan(fit_axes[:, 0])
-        a["axes"][fa] = np.where(np.isnan(a["axes"][fa]), fit_axes[fa], 0.7 * a["axes"][fa] + 0.3 * fit_axes[fa])
-
-        # 5. confirmation, 6. deleter
-        hits_in_window = np.bitwise_count(a["hist"]).astype(np.int64)
-        settled = a["mmsi"] >= 0
-        if np.isfinite(cfg.confirm_velocity_std_m_s):  # LiDAR-only: the velocity must have settled
-            Pv = a["P"][:, 2:, 2:]
-            tr, det = Pv[:, 0, 0] + Pv[:, 1, 1], Pv[:, 0, 0] * Pv[:, 1, 1] - Pv[:, 0, 1] ** 2
-            settled = settled | (0.5 * tr + np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
-                                 <= cfg.confirm_velocity_std_m_s ** 2)
-        else:
-            settled = np.ones_like(settled)
-        newly = ~a["confirmed"] & (((hits_in_window >= cfg.confirm_m) & settled) | (a["n_ais"] >= 2))
-        a["confirmed"] |= newly
-        self._count("tracks_confirmed", int(newly.sum()))
-        self._delete(t, hits_in_window)
+        check_v = bool(np.isfinite(cfg.confirm_velocity_std_m_s))
+        newly, dead, bad, lmax = bookkeeping(
+            a["x"], a["P"], a["gotL"], a["gotA"], a["hist"], a["age"], a["n_ais"], a["t_last"], a["axes"], fit_axes,
+            a["confirmed"], a["mmsi"], t, (1 << cfg.confirm_n) - 1, cfg.confirm_m, cfg.confirm_n, check_v,
+            cfg.confirm_velocity_std_m_s ** 2 if check_v else 0.0, cfg.max_coast_s, cfg.max_coast_ais_s,
+            cfg.max_position_std_m)
+        self._count("tracks_confirmed", newly)
+        self._delete(t, dead, bad, lmax)
         self._merge()
 
         # 5. initiator (after deletion: new tracks are not judged on this tick)
@@ -526,22 +511,6 @@ class Tracker:
             _end_shadows(cl), _hull_prm(mdl, cl), mdl.heading_floor_rad, cfg.course_min_speed_m_s ** 2,
             cfg.course_max_std_rad ** 2, self._gL, FORBIDDEN, cfg.course_min_returns, self._track_dims())
 
-    def _update_sensor_filters(self, zL: _F8, RL: _F8, zA: _F8, RA: _F8) -> None:
-        a, t = self._a, self._t
-        for got, has, xk, Pk, Gk, tk, z, R, H in (
-            (a["gotL"], a["hasL"], "xL", "PL", "GL", "tL", zL, RL, H_POSITION),
-            (a["gotA"], a["hasA"], "xA", "PA", "GA", "tA", zA, RA, H_FULL),
-        ):
-            upd = np.flatnonzero(got & has)
-            if upd.size:  # kalman_update of those rows, in place
-                update_rows(a[xk], a[Pk], a[Gk], upd, z, R, np.ascontiguousarray(H))
-            init = np.flatnonzero(got & ~has)
-            if init.size:
-                xi, Pi = self._initial_state(z[init], R[init])
-                a[xk][init], a[Pk][init], a[Gk][init] = xi, Pi, np.eye(4)
-                has[init] = True
-            a[tk][got] = t
-
     def _initial_state(self, z: _F8, R: _F8) -> tuple[_F8, _F8]:
         """Track start from position-only (k, 2) or full (k, 4) measurements."""
         k = z.shape[0]
@@ -575,29 +544,24 @@ class Tracker:
                 x, P, _ = fuse_covariance_intersection(a["xA"][both], a["PA"][both], a["xL"][both], a["PL"][both])
             a["x"][both], a["P"][both] = x, P
 
-    def _delete(self, t: float, hits: NDArray[np.int64]) -> None:
-        a, cfg = self._a, self.config
+    def _delete(self, t: float, dead: NDArray[np.bool_], bad: NDArray[np.bool_], lmax: _F8) -> None:
+        """Delete the tracks that :func:`~asvtwin.tracking.tracker_kernels.bookkeeping`
+        marked (tentative tracks that can no longer reach M of N, tracks not updated for
+        ``max_coast_s`` (``max_coast_ais_s`` when tied), position spread beyond
+        ``max_position_std_m``, non-finite estimates) and tracks well inside land."""
+        a = self._a
         if a["x"].shape[0] == 0:
             return
-        window = np.minimum(a["age"], cfg.confirm_n)
-        tentative_dead = ~a["confirmed"] & (a["mmsi"] < 0) & (window - hits > cfg.confirm_n - cfg.confirm_m)
-        coast = np.where(a["mmsi"] >= 0, cfg.max_coast_ais_s, cfg.max_coast_s)
-        stale = (t - a["t_last"]) > coast
-        pos = a["P"][:, :2, :2]
-        tr, det = pos[:, 0, 0] + pos[:, 1, 1], pos[:, 0, 0] * pos[:, 1, 1] - pos[:, 0, 1] ** 2
-        lmax = 0.5 * tr + np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
-        vague = np.sqrt(lmax) > cfg.max_position_std_m
-        bad = ~(np.isfinite(a["x"]).all(axis=1) & np.isfinite(a["P"]).all(axis=(1, 2)))
-        on_land = np.zeros_like(bad)
         if self.land is not None:
+            on_land = np.zeros_like(bad)
             p = np.where(bad[:, None], 0.0, a["x"][:, :2])
             inland = self.land.contains(p)
             if inland.any():
                 depth = self.land.distance_to_shore(p[inland])
                 on_land[np.flatnonzero(inland)] = depth > 3.0 * np.sqrt(lmax[inland]) + 10.0
-        dead = tentative_dead | stale | vague | bad | on_land
+            dead = dead | on_land
+            self._count("deleted_on_land", int((on_land & ~bad).sum()))
         self._count("nan_guard", int(bad.sum()), "track with a non-finite estimate deleted (a bug)")
-        self._count("deleted_on_land", int((on_land & ~bad).sum()))
         if dead.any():
             self._count("tracks_deleted", int(dead.sum()))
             self._keep(~dead)

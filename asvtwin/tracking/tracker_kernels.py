@@ -16,38 +16,150 @@ from numba import njit
 # compiles _hull_box_one into itself, so a change to hull_model.py must come with a change
 # to this file (or a cleared __pycache__), else the cached kernel keeps the old model
 # (it did once, silently, while the range-limit model was written).
+from asvtwin.tracking.fusion import _product_row
 from asvtwin.tracking.hull_model import _hull_box_one
-from asvtwin.tracking.kalman import _update_kernel
+from asvtwin.tracking.kalman import _update_row
 
 __all__: list[str] = []  # internal kernels
 
 
 @njit(cache=True)
-def update_rows(x, P, G, rows, z, R, H):  # type: ignore[no-untyped-def]
-    """Kalman update (Joseph form) of ``rows`` in place; ``G = K H`` of those rows.
+def _initial_row(z, R, i, x, P, G, v2):  # type: ignore[no-untyped-def]
+    """:meth:`Tracker._initial_state` of track row ``i`` from ``z[i]``, ``R[i]`` (position
+    only, or position and velocity) into ``x[i]``, ``P[i]``; ``G[i] = I``."""
+    for r in range(4):
+        x[i, r] = 0.0
+        for c in range(4):
+            P[i, r, c] = 0.0
+            G[i, r, c] = 1.0 if r == c else 0.0
+    x[i, 0], x[i, 1] = z[i, 0], z[i, 1]
+    for r in range(2):
+        for c in range(2):
+            P[i, r, c] = R[i, r, c]
+    if z.shape[1] == 4 and not R[i, 2, 2] > v2:  # a velocity that is known
+        x[i, 2], x[i, 3] = z[i, 2], z[i, 3]
+        for r in range(2):
+            for c in range(2):
+                P[i, r + 2, c + 2] = R[i, r + 2, c + 2]
+                P[i, r, c + 2] = R[i, r, c + 2]
+                P[i, r + 2, c] = R[i, r + 2, c]
+    else:
+        P[i, 2, 2] = v2
+        P[i, 3, 3] = v2
 
-    ``z``/``R`` are indexed by track row like ``x``/``P``.
-    """
-    k, m = rows.shape[0], H.shape[0]
-    xs, Ps = np.empty((k, 4)), np.empty((k, 4, 4))
-    zs, Rs = np.empty((k, m)), np.empty((k, m, m))
-    for a in range(k):
-        i = rows[a]
-        xs[a] = x[i]
-        Ps[a] = P[i]
-        zs[a] = z[i]
-        Rs[a] = R[i]
-    xn, Pn, K, _, _, _ = _update_kernel(xs, Ps, zs, Rs, H)
-    for a in range(k):
-        i = rows[a]
-        x[i] = xn[a]
-        P[i] = Pn[a]
+
+@njit(cache=True)
+def update_and_fuse(x, P, xL, PL, GL, hasL, tL, gotL, zL, RL, HL, xA, PA, GA, hasA, tA, gotA, zA, RA, HA, t, v2,
+                    product):  # type: ignore[no-untyped-def]
+    """The tick's updater in one pass over the tracks, in place: each per-sensor filter
+    that got a measurement is updated (Joseph form, ``G = K H``; :func:`~asvtwin.tracking.kalman._update_row`'s
+    arithmetic) or started (:func:`_initial_row`) and stamped ``t``; with ``product`` the
+    fused estimate ``x``, ``P`` is the product of its prediction and the measurements
+    (:func:`asvtwin.tracking.fusion._product_kernel`'s arithmetic)."""
+    n = x.shape[0]
+    xs, Ps = np.empty((1, 4)), np.empty((1, 4, 4))
+    A, B = np.empty((4, 4)), np.empty((4, 4))
+    # per measurement size m: K (1, 4, m), S (1, m, m), y (1, m), S^-1 and a scratch (m, m)
+    mL, mA = HL.shape[0], HA.shape[0]
+    KL, SL, yL, SiL, wL = np.empty((1, 4, mL)), np.empty((1, mL, mL)), np.empty((1, mL)), np.empty((mL, mL)), \
+        np.empty((mL, mL))
+    KA, SA, yA, SiA, wA = np.empty((1, 4, mA)), np.empty((1, mA, mA)), np.empty((1, mA)), np.empty((mA, mA)), \
+        np.empty((mA, mA))
+    PHtL, PHtA = np.empty((4, mL)), np.empty((4, mA))
+    Y, Pn, w4, yv = np.empty((4, 4)), np.empty((4, 4)), np.empty((4, 4)), np.empty(4)
+    for i in range(n):
+        for sensor in range(2):
+            if sensor == 0:
+                got, has, xk, Pk, Gk, tk, z, R, H = gotL, hasL, xL, PL, GL, tL, zL, RL, HL
+                K, S, y, Si, w, PH = KL, SL, yL, SiL, wL, PHtL
+            else:
+                got, has, xk, Pk, Gk, tk, z, R, H = gotA, hasA, xA, PA, GA, tA, zA, RA, HA
+                K, S, y, Si, w, PH = KA, SA, yA, SiA, wA, PHtA
+            if not got[i]:
+                continue
+            if has[i]:
+                _update_row(xk, Pk, z, R, H, i, xs, Ps, K, S, y, 0, PH, Si, w, A, B)
+                m = H.shape[0]
+                for r in range(4):
+                    xk[i, r] = xs[0, r]
+                    for c in range(4):
+                        Pk[i, r, c] = Ps[0, r, c]
+                for r in range(4):
+                    for c in range(4):
+                        acc = 0.0
+                        for l in range(m):
+                            acc += K[0, r, l] * H[l, c]
+                        Gk[i, r, c] = acc
+            else:
+                _initial_row(z, R, i, xk, Pk, Gk, v2)
+                has[i] = True
+            tk[i] = t
+        if product:  # in place: the row's prior is read before its posterior is written
+            _product_row(x, P, zL, RL, gotL, HL, zA, RA, gotA, HA, i, x, P, Y, Pn, w4, yv, SiL, wL, SiA, wA)
+
+
+@njit(cache=True)
+def bookkeeping(x, P, gotL, gotA, hist, age, n_ais, t_last, axes, fit_axes, confirmed, mmsi, t, mask_n, confirm_m,
+                confirm_n, check_velocity, velocity_var, max_coast_s, max_coast_ais_s, max_position_std):  # type: ignore[no-untyped-def]
+    """After the updater, in one pass, in place: hit history, age, AIS count, time of the
+    last update, smoothed semi-axes, M-of-N confirmation (with the settled-velocity rule
+    when ``check_velocity``), and the deleter's tests but the land one. Returns the number
+    of newly confirmed tracks, the tracks to delete (land aside), the non-finite ones and
+    the largest position-covariance eigenvalue of each (the land test's)."""
+    n = x.shape[0]
+    dead = np.zeros(n, np.bool_)
+    bad = np.zeros(n, np.bool_)
+    lmax = np.empty(n)
+    newly = 0
+    for i in range(n):
+        hit = gotL[i] or gotA[i]
+        h = ((hist[i] << 1) | (1 if hit else 0)) & mask_n
+        hist[i] = h
+        age[i] += 1
+        if gotA[i]:
+            n_ais[i] += 1
+        if hit:
+            t_last[i] = t
+        f0, f1 = fit_axes[i, 0], fit_axes[i, 1]
+        if not np.isnan(f0):
+            a0, a1 = axes[i, 0], axes[i, 1]
+            axes[i, 0] = f0 if np.isnan(a0) else 0.7 * a0 + 0.3 * f0
+            axes[i, 1] = f1 if np.isnan(a1) else 0.7 * a1 + 0.3 * f1
+        hits = 0
+        while h:
+            hits += h & 1
+            h >>= 1
+        # confirmation
+        settled = True
+        if check_velocity:
+            settled = mmsi[i] >= 0
+            if not settled:
+                tr = P[i, 2, 2] + P[i, 3, 3]
+                det = P[i, 2, 2] * P[i, 3, 3] - P[i, 2, 3] * P[i, 2, 3]
+                v = 0.25 * tr * tr - det
+                settled = 0.5 * tr + np.sqrt(v if (v > 0.0 or np.isnan(v)) else 0.0) <= velocity_var
+        if not confirmed[i] and ((hits >= confirm_m and settled) or n_ais[i] >= 2):
+            confirmed[i] = True
+            newly += 1
+        # deleter (the land test is the caller's)
+        window = min(age[i], confirm_n)
+        d = (not confirmed[i]) and mmsi[i] < 0 and window - hits > confirm_n - confirm_m
+        coast = max_coast_ais_s if mmsi[i] >= 0 else max_coast_s
+        d = d or (t - t_last[i]) > coast
+        tr = P[i, 0, 0] + P[i, 1, 1]
+        det = P[i, 0, 0] * P[i, 1, 1] - P[i, 0, 1] * P[i, 0, 1]
+        v = 0.25 * tr * tr - det
+        lm = 0.5 * tr + np.sqrt(v if (v > 0.0 or np.isnan(v)) else 0.0)
+        lmax[i] = lm
+        d = d or np.sqrt(lm) > max_position_std
+        fin = True
         for r in range(4):
+            fin = fin and np.isfinite(x[i, r])
             for c in range(4):
-                acc = 0.0
-                for l in range(m):
-                    acc += K[a, r, l] * H[l, c]
-                G[i, r, c] = acc
+                fin = fin and np.isfinite(P[i, r, c])
+        bad[i] = not fin
+        dead[i] = d or not fin
+    return newly, dead, bad, lmax
 
 
 @njit(cache=True)
