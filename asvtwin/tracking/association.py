@@ -125,12 +125,32 @@ def gnn_assign(cost: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     c = np.asarray(cost, dtype=np.float64)
     if c.ndim != 2:
         raise StateError(f"cost must be a 2-D matrix, actually: shape {c.shape}")
-    allowed = c < FORBIDDEN
-    r_idx = np.flatnonzero(allowed.any(axis=1))
-    c_idx = np.flatnonzero(allowed.any(axis=0))
+    r_idx, c_idx, sub = _allowed_block(np.ascontiguousarray(c), FORBIDDEN)
     if r_idx.size == 0:
         return np.empty(0, np.int64), np.empty(0, np.int64)
-    sub = c[np.ix_(r_idx, c_idx)]
-    rr, cc = linear_sum_assignment(np.minimum(sub, FORBIDDEN))
+    rr, cc = linear_sum_assignment(sub)
     ok = sub[rr, cc] < FORBIDDEN
-    return r_idx[rr[ok]].astype(np.int64), c_idx[cc[ok]].astype(np.int64)
+    return r_idx[rr[ok]], c_idx[cc[ok]]
+
+
+@njit(cache=True)
+def _allowed_block(c, forbidden):  # type: ignore[no-untyped-def]
+    """The rows and columns of ``c`` with an allowed (``< forbidden``) entry, and the block
+    of ``c`` on them with entries above ``forbidden`` lowered to it (``np.minimum``: NaN
+    stays NaN)."""
+    n, k = c.shape
+    row_ok = np.zeros(n, np.bool_)
+    col_ok = np.zeros(k, np.bool_)
+    for i in range(n):
+        for j in range(k):
+            if c[i, j] < forbidden:
+                row_ok[i] = True
+                col_ok[j] = True
+    r_idx = np.flatnonzero(row_ok)
+    c_idx = np.flatnonzero(col_ok)
+    sub = np.empty((r_idx.size, c_idx.size))
+    for a in range(r_idx.size):
+        for b in range(c_idx.size):
+            v = c[r_idx[a], c_idx[b]]
+            sub[a, b] = v if (v < forbidden or np.isnan(v)) else forbidden
+    return r_idx.astype(np.int64), c_idx.astype(np.int64), sub

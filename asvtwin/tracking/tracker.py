@@ -64,6 +64,7 @@ from asvtwin.tracking.tracker_kernels import (
     near_tracks,
     pair_measurements,
     position_mahalanobis,
+    take_assigned,
     update_and_fuse,
 )
 
@@ -282,21 +283,12 @@ class Tracker:
                 m = lidar_measurements(cl, mdl)
                 self._count("fit_fallbacks", int((~m.used_fit).sum()))
                 cost = gated_costs(a["x"][:, :2], a["P"][:, :2, :2], m.z, m.R, self._gL)[0]
-                ti, cj, zp, Rp, Rpu, with_course = self._pair_measurements(cl, cost, m, mdl)
-                self._ais_identity_gate(t, cost, ti, cj, zp, Rp)
+                ti, cj, zp, _, Rpu, with_course = self._pair_measurements(t, cl, cost, m, mdl)
                 rows, cols = gnn_assign(cost)
-                a["gotL"][rows] = True
-                pair = np.full(cost.shape, -1, np.int64)
-                pair[ti, cj] = np.arange(ti.size)
-                p = pair[rows, cols]
-                zL[rows], RL[rows] = zp[p], Rpu[p]
-                self._count("lidar_with_course", int(with_course[p].sum()))
-                self.last_nis["lidar"] = position_mahalanobis(zL[rows] - a["x"][rows, :2], a["P"][rows, :2, :2],
-                                                              RL[rows])
-                good = m.used_fit[cols] & (m.fits.arc_coverage_rad[cols] >= 0.5 * np.pi)
-                fit_axes[rows[good]] = m.fits.semi_axes[cols[good]]
-                free = np.ones(len(m), bool)
-                free[cols] = False
+                self.last_nis["lidar"], n_course, free = take_assigned(
+                    rows, cols, ti, cj, zp, Rpu, with_course, a["x"], a["P"], m.used_fit, m.fits.arc_coverage_rad,
+                    m.fits.semi_axes, len(m), zL, RL, a["gotL"], fit_axes)
+                self._count("lidar_with_course", n_course)
                 free &= ~self._in_coast_band(cl, free)
                 new_z, new_R = m.z[free], m.R[free]
 
@@ -451,23 +443,6 @@ class Tracker:
         self._count("init_coast_band", int(out.sum()))
         return out
 
-    def _ais_identity_gate(self, t: float, cost: _F8, ti: NDArray[np.int64], cj: NDArray[np.int64], zp: _F8,
-                           Rp: _F8) -> None:
-        """The AIS identity is evidence: a track tied to an MMSI takes a LiDAR cluster only
-        if the cluster (measured with that track's course: ``zp``, ``Rp`` of the gated pairs
-        ``ti``, ``cj``) is also consistent with the track's own AIS-only estimate (its
-        reports aged to ``t``), so LiDAR alone cannot drag an MMSI onto a neighbour."""
-        a, cfg = self._a, self.config
-        sel = np.flatnonzero((a["mmsi"][ti] >= 0) & a["hasA"][ti] & (t - a["tA"][ti] <= cfg.max_coast_ais_s))
-        if sel.size == 0:
-            return
-        r = ti[sel]
-        d2 = position_mahalanobis(zp[sel] - a["xA"][r, :2], np.ascontiguousarray(a["PA"][r, :2, :2]), Rp[sel])
-        bad = (d2 > self._gA_id) & (cost[r, cj[sel]] < FORBIDDEN)
-        if bad.any():
-            cost[r[bad], cj[sel][bad]] = FORBIDDEN
-            self._count("lidar_vetoed_by_ais", int(bad.sum()))
-
     def _scan_model(self, t: float) -> LidarModel:
         """The LiDAR model of this scan: ``depth_persistence`` in scans from
         ``TrackerConfig.depth_persistence_s`` and the time since the previous scan (the
@@ -485,7 +460,7 @@ class Tracker:
             mdl = self._models[kappa] = replace(cfg.lidar, depth_persistence=kappa)
         return mdl
 
-    def _pair_measurements(self, cl: Clusters, cost: _F8, m: LidarMeasurements, mdl: LidarModel) -> tuple[
+    def _pair_measurements(self, t: float, cl: Clusters, cost: _F8, m: LidarMeasurements, mdl: LidarModel) -> tuple[
             NDArray[np.int64], NDArray[np.int64], _F8, _F8, _F8, NDArray[np.bool_]]:
         """The measurement of every gated (track, cluster) pair, and the pair's cost again.
 
@@ -497,19 +472,27 @@ class Tracker:
         measured between them and taken by the far vessel's track (an MMSI swap); with its
         course, the same cluster is where the near hull is.
 
+        The AIS identity is evidence: a track tied to an MMSI takes a LiDAR cluster only
+        if the cluster (measured with that track's course) is also consistent with the
+        track's own AIS-only estimate (its reports aged to ``t``), so LiDAR alone cannot drag
+        an MMSI onto a neighbour (counted in ``lidar_vetoed_by_ais``).
+
         Returns the pairs ``ti``, ``cj``, their ``z``, single-scan ``R`` (gates),
         ``R_update`` (the filter) and whether the course was used; ``cost`` is updated in
-        place (pairs that leave the gate become :data:`FORBIDDEN`).
+        place (pairs that leave the gate or fail the identity gate become :data:`FORBIDDEN`).
         """
         a, cfg = self._a, self.config
         use_course = mdl.centre == "hull_box" and bool(np.isfinite(cl.origin_ned).all())
         # (clusters without the sensor position keep the fitted centre)
-        return pair_measurements(
+        ti, cj, zp, Rp, Rpu, wc, vetoed = pair_measurements(
             cost, a["x"], a["P"], m.z, m.R, m.R if m.R_update is None else m.R_update, use_course,
             np.ascontiguousarray(cl.points, dtype=np.float64).reshape(-1, 2),
             np.ascontiguousarray(cl.offsets, dtype=np.int64), np.asarray(cl.origin_ned, dtype=np.float64).reshape(2),
             _end_shadows(cl), _hull_prm(mdl, cl), mdl.heading_floor_rad, cfg.course_min_speed_m_s ** 2,
-            cfg.course_max_std_rad ** 2, self._gL, FORBIDDEN, cfg.course_min_returns, self._track_dims())
+            cfg.course_max_std_rad ** 2, self._gL, FORBIDDEN, cfg.course_min_returns, self._track_dims(),
+            a["mmsi"], a["hasA"], a["tA"], a["xA"], a["PA"], t, cfg.max_coast_ais_s, self._gA_id)
+        self._count("lidar_vetoed_by_ais", vetoed)
+        return ti, cj, zp, Rp, Rpu, wc
 
     def _initial_state(self, z: _F8, R: _F8) -> tuple[_F8, _F8]:
         """Track start from position-only (k, 2) or full (k, 4) measurements."""

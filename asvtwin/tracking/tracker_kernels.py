@@ -234,14 +234,22 @@ def coincident(x, P, mmsi, gamma):  # type: ignore[no-untyped-def]
 
 @njit(cache=True)
 def pair_measurements(cost, x, P, z0, R0, Ru0, use_course, points, offsets, origin, shadow, prm, heading_floor,
-                      min_speed2, max_course_var, gamma, forbidden, min_returns, dims):  # type: ignore[no-untyped-def]
+                      min_speed2, max_course_var, gamma, forbidden, min_returns, dims, mmsi, hasA, tA, xA, PA, t,
+                      max_coast_ais, gamma_id):  # type: ignore[no-untyped-def]
     """The measurement of every gated (track, cluster) pair (``cost < forbidden``, in
     ``np.nonzero`` order), measured again with the track's course where it has one
     (speed² ≥ ``min_speed2``, course variance ≤ ``max_course_var``; clusters of at least
     ``min_returns`` returns) and re-gated with it;
     ``cost`` is updated in place (:meth:`asvtwin.tracking.tracker.Tracker._pair_measurements`
     says why). ``dims (n, 2)``: each track's known length and beam [m] (NaN: unknown),
-    used with its course. Returns ``ti, cj, z, R (single scan), R_update, with_course``."""
+    used with its course.
+
+    Then the AIS identity gate (:meth:`asvtwin.tracking.tracker.Tracker._ais_identity_gate`
+    says why): a pair of a track tied to an MMSI (``mmsi >= 0``) with an AIS-only filter
+    (``hasA``) updated within ``max_coast_ais`` of ``t`` stays allowed only when its
+    measurement lies within ``gamma_id`` of that filter's position (``xA``, ``PA``; the
+    arithmetic of :func:`position_mahalanobis`). Returns ``ti, cj, z, R (single scan),
+    R_update, with_course`` and the number of pairs the identity gate vetoed."""
     n, k = cost.shape
     cnt = 0
     for i in range(n):
@@ -256,6 +264,7 @@ def pair_measurements(cost, x, P, z0, R0, Ru0, use_course, points, offsets, orig
     ext = np.empty((cnt, 2))
     wc = np.zeros(cnt, np.bool_)
     p = 0
+    vetoed = 0
     for i in range(n):
         for j in range(k):
             if not cost[i, j] < forbidden:
@@ -284,5 +293,59 @@ def pair_measurements(cost, x, P, z0, R0, Ru0, use_course, points, offsets, orig
                     d2 = (c * dn * dn - 2.0 * b * dn * de + a * de * de) / det if det > 0.0 else np.inf
                     det2 = a * c - b * (P[i, 1, 0] + Rp[p, 1, 0])
                     cost[i, j] = d2 + np.log(det2) if d2 <= gamma else forbidden
+            if mmsi[i] >= 0 and hasA[i] and t - tA[i] <= max_coast_ais:  # the identity gate
+                a = PA[i, 0, 0] + Rp[p, 0, 0]
+                b = PA[i, 0, 1] + Rp[p, 0, 1]
+                c = PA[i, 1, 1] + Rp[p, 1, 1]
+                det = a * c - b * b
+                dn, de = zp[p, 0] - xA[i, 0], zp[p, 1] - xA[i, 1]
+                d2 = (c * dn * dn - 2.0 * b * dn * de + a * de * de) / det if det > 0.0 else np.inf
+                if d2 > gamma_id and cost[i, j] < forbidden:
+                    cost[i, j] = forbidden
+                    vetoed += 1
             p += 1
-    return ti, cj, zp, Rp, Rpu, wc
+    return ti, cj, zp, Rp, Rpu, wc, vetoed
+
+
+@njit(cache=True)
+def take_assigned(rows, cols, ti, cj, zp, Rpu, wc, x, P, used_fit, coverage, semi_axes, n_clusters, zL, RL, gotL,
+                  fit_axes):  # type: ignore[no-untyped-def]
+    """The LiDAR assignment's bookkeeping, in place: track ``rows[q]`` gets the measurement
+    of its pair with cluster ``cols[q]`` (``zL``, ``RL``: the pair's ``z`` and
+    ``R_update``; ``gotL``), and the fit's semi-axes when the fit was used and covers at
+    least half a turn (``fit_axes``). The pairs ``ti``, ``cj`` are in ``np.nonzero``
+    order. Returns the position NIS of each assignment (:func:`position_mahalanobis`'
+    arithmetic), how many pairs were measured with the course, and which clusters are
+    left free."""
+    nq = rows.shape[0]
+    nis = np.empty(nq)
+    free = np.ones(n_clusters, np.bool_)
+    n = x.shape[0]
+    start = np.zeros(n + 1, np.int64)  # pairs of track i: start[i]..start[i + 1] - 1
+    for p in range(ti.shape[0]):
+        start[ti[p] + 1] += 1
+    for i in range(n):
+        start[i + 1] += start[i]
+    n_course = 0
+    for q in range(nq):
+        i, j = rows[q], cols[q]
+        p = start[i]
+        while cj[p] != j:
+            p += 1
+        gotL[i] = True
+        zL[i, 0], zL[i, 1] = zp[p, 0], zp[p, 1]
+        for r in range(2):
+            for c in range(2):
+                RL[i, r, c] = Rpu[p, r, c]
+        if wc[p]:
+            n_course += 1
+        a = P[i, 0, 0] + RL[i, 0, 0]
+        b = P[i, 0, 1] + RL[i, 0, 1]
+        c = P[i, 1, 1] + RL[i, 1, 1]
+        det = a * c - b * b
+        dn, de = zL[i, 0] - x[i, 0], zL[i, 1] - x[i, 1]
+        nis[q] = (c * dn * dn - 2.0 * b * dn * de + a * de * de) / det if det > 0.0 else np.inf
+        if used_fit[j] and coverage[j] >= 0.5 * np.pi:
+            fit_axes[i, 0], fit_axes[i, 1] = semi_axes[j, 0], semi_axes[j, 1]
+        free[j] = False
+    return nis, n_course, free
