@@ -160,6 +160,82 @@ def _update_row(x, P, z, R, H, k, xo, Po, Ko, So, yo, o, PHt, Si, work, A, B):  
     return acc
 
 
+@njit(cache=True, inline="always")
+def _update_row_h(x, P, z, R, m, k, xo, Po, K, S, Si, work, A, B):  # type: ignore[no-untyped-def]
+    """:func:`_update_row` for ``H = [I_m 0]`` (``m`` = 2: :data:`H_POSITION`, 4:
+    :data:`H_FULL`) into ``xo[0]``, ``Po[0]``, ``K[0]`` (``S``, ``Si``, ``work``: (m, m),
+    ``A``, ``B``: (4, 4) scratch); returns the NIS.
+
+    The same operations in the same order as the generic row without the products by
+    the zeros and ones of ``H``: adding ``0 * v`` or multiplying by 1 leaves a finite
+    value unchanged, so the results are equal bit for bit (up to the sign of a zero) for
+    finite inputs; the tracker deletes a track with a non-finite estimate anyway. Inlined
+    (numba IR) into its callers, which pass ``m`` as a constant: the loops unroll, ~2-3×
+    faster than the generic row.
+    """
+    y0 = z[k, 0] - x[k, 0]
+    y1 = z[k, 1] - x[k, 1]
+    y2 = z[k, 2] - x[k, 2] if m == 4 else 0.0
+    y3 = z[k, 3] - x[k, 3] if m == 4 else 0.0
+    # S = 0.5 (R + Rᵀ) + Σ_l 0.5 (H[i, l] PHᵀ[l, j] + H[j, l] PHᵀ[l, i]), PHᵀ[l, j] = P[l, j]
+    for i in range(m):
+        for j in range(m):
+            acc = 0.5 * (R[k, i, j] + R[k, j, i])
+            if i == j:
+                acc += 0.5 * (P[k, i, i] + P[k, i, i])
+            elif i < j:
+                acc += 0.5 * P[k, i, j]
+                acc += 0.5 * P[k, j, i]
+            else:
+                acc += 0.5 * P[k, j, i]
+                acc += 0.5 * P[k, i, j]
+            S[i, j] = acc
+    inv_into(S, Si, work)
+    for i in range(4):  # K = P Hᵀ S⁻¹
+        for j in range(m):
+            acc = 0.0
+            for l in range(m):
+                acc += P[k, i, l] * Si[l, j]
+            K[0, i, j] = acc
+    for i in range(4):
+        acc = x[k, i] + K[0, i, 0] * y0
+        acc += K[0, i, 1] * y1
+        if m == 4:
+            acc += K[0, i, 2] * y2
+            acc += K[0, i, 3] * y3
+        xo[0, i] = acc
+    for i in range(4):  # A = I - K H
+        for j in range(4):
+            acc = 1.0 if i == j else 0.0
+            if j < m:
+                acc -= K[0, i, j]
+            A[i, j] = acc
+    for i in range(4):  # B = A P
+        for j in range(4):
+            acc = 0.0
+            for l in range(4):
+                acc += A[i, l] * P[k, l, j]
+            B[i, j] = acc
+    for i in range(4):
+        for j in range(i, 4):
+            acc = 0.0
+            for l in range(4):
+                acc += B[i, l] * A[j, l]
+            for a in range(m):
+                kr = 0.0
+                for b in range(m):
+                    kr += R[k, a, b] * K[0, j, b]
+                acc += K[0, i, a] * kr
+            Po[0, i, j] = acc
+            Po[0, j, i] = acc
+    yy = (y0, y1, y2, y3)
+    acc = 0.0
+    for i in range(m):
+        for j in range(m):
+            acc += yy[i] * Si[i, j] * yy[j]
+    return acc
+
+
 @njit(cache=True)
 def _update_kernel(x, P, z, R, H):  # type: ignore[no-untyped-def]
     n, m = x.shape[0], H.shape[0]

@@ -18,7 +18,7 @@ from numba import njit
 # (it did once, silently, while the range-limit model was written).
 from asvtwin.tracking.fusion import _product_row
 from asvtwin.tracking.hull_model import _hull_box_one
-from asvtwin.tracking.kalman import _update_row
+from asvtwin.tracking.kalman import _update_row_h
 
 __all__: list[str] = []  # internal kernels
 
@@ -48,52 +48,50 @@ def _initial_row(z, R, i, x, P, G, v2):  # type: ignore[no-untyped-def]
         P[i, 3, 3] = v2
 
 
+@njit(cache=True, inline="always")
+def _take_row(x, P, G, i, xs, Ps, K, m):  # type: ignore[no-untyped-def]
+    """Row ``i`` of a per-sensor filter from an update's ``xs[0]``, ``Ps[0]``, and its gain
+    mapped to the state, ``G = K H`` for ``H = [I_m 0]`` (the sum ``0.0 + K`` as the
+    generic product has it)."""
+    for r in range(4):
+        x[i, r] = xs[0, r]
+        for c in range(4):
+            P[i, r, c] = Ps[0, r, c]
+            G[i, r, c] = 0.0 + K[0, r, c] if c < m else 0.0
+
+
 @njit(cache=True)
 def update_and_fuse(x, P, xL, PL, GL, hasL, tL, gotL, zL, RL, HL, xA, PA, GA, hasA, tA, gotA, zA, RA, HA, t, v2,
                     product):  # type: ignore[no-untyped-def]
     """The tick's updater in one pass over the tracks, in place: each per-sensor filter
-    that got a measurement is updated (Joseph form, ``G = K H``; :func:`~asvtwin.tracking.kalman._update_row`'s
-    arithmetic) or started (:func:`_initial_row`) and stamped ``t``; with ``product`` the
+    that got a measurement is updated (Joseph form, ``G = K H``: the arithmetic of the
+    generic row, :func:`~asvtwin.tracking.kalman._update_row_h`) or started (:func:`_initial_row`) and stamped ``t``; with ``product`` the
     fused estimate ``x``, ``P`` is the product of its prediction and the measurements
     (:func:`asvtwin.tracking.fusion._product_kernel`'s arithmetic)."""
     n = x.shape[0]
     xs, Ps = np.empty((1, 4)), np.empty((1, 4, 4))
     A, B = np.empty((4, 4)), np.empty((4, 4))
-    # per measurement size m: K (1, 4, m), S (1, m, m), y (1, m), S^-1 and a scratch (m, m)
-    mL, mA = HL.shape[0], HA.shape[0]
-    KL, SL, yL, SiL, wL = np.empty((1, 4, mL)), np.empty((1, mL, mL)), np.empty((1, mL)), np.empty((mL, mL)), \
-        np.empty((mL, mL))
-    KA, SA, yA, SiA, wA = np.empty((1, 4, mA)), np.empty((1, mA, mA)), np.empty((1, mA)), np.empty((mA, mA)), \
-        np.empty((mA, mA))
-    PHtL, PHtA = np.empty((4, mL)), np.empty((4, mA))
+    KL, SL, SiL, wL = np.empty((1, 4, 2)), np.empty((2, 2)), np.empty((2, 2)), np.empty((2, 2))
+    KA, SA, SiA, wA = np.empty((1, 4, 4)), np.empty((4, 4)), np.empty((4, 4)), np.empty((4, 4))
     Y, Pn, w4, yv = np.empty((4, 4)), np.empty((4, 4)), np.empty((4, 4)), np.empty(4)
     for i in range(n):
-        for sensor in range(2):
-            if sensor == 0:
-                got, has, xk, Pk, Gk, tk, z, R, H = gotL, hasL, xL, PL, GL, tL, zL, RL, HL
-                K, S, y, Si, w, PH = KL, SL, yL, SiL, wL, PHtL
+        # LiDAR (position, H_POSITION) and AIS (position and velocity, H_FULL) filters
+        if gotL[i]:
+            if hasL[i]:
+                _update_row_h(xL, PL, zL, RL, 2, i, xs, Ps, KL, SL, SiL, wL, A, B)
+                _take_row(xL, PL, GL, i, xs, Ps, KL, 2)
             else:
-                got, has, xk, Pk, Gk, tk, z, R, H = gotA, hasA, xA, PA, GA, tA, zA, RA, HA
-                K, S, y, Si, w, PH = KA, SA, yA, SiA, wA, PHtA
-            if not got[i]:
-                continue
-            if has[i]:
-                _update_row(xk, Pk, z, R, H, i, xs, Ps, K, S, y, 0, PH, Si, w, A, B)
-                m = H.shape[0]
-                for r in range(4):
-                    xk[i, r] = xs[0, r]
-                    for c in range(4):
-                        Pk[i, r, c] = Ps[0, r, c]
-                for r in range(4):
-                    for c in range(4):
-                        acc = 0.0
-                        for l in range(m):
-                            acc += K[0, r, l] * H[l, c]
-                        Gk[i, r, c] = acc
+                _initial_row(zL, RL, i, xL, PL, GL, v2)
+                hasL[i] = True
+            tL[i] = t
+        if gotA[i]:
+            if hasA[i]:
+                _update_row_h(xA, PA, zA, RA, 4, i, xs, Ps, KA, SA, SiA, wA, A, B)
+                _take_row(xA, PA, GA, i, xs, Ps, KA, 4)
             else:
-                _initial_row(z, R, i, xk, Pk, Gk, v2)
-                has[i] = True
-            tk[i] = t
+                _initial_row(zA, RA, i, xA, PA, GA, v2)
+                hasA[i] = True
+            tA[i] = t
         if product:  # in place: the row's prior is read before its posterior is written
             _product_row(x, P, zL, RL, gotL, HL, zA, RA, gotA, HA, i, x, P, Y, Pn, w4, yv, SiL, wL, SiA, wA)
 
