@@ -104,6 +104,50 @@ def _product_row(x, P, zL, RL, hL, HL, zA, RA, hA, HA, k, xo, Po, Y, Pn, w4, y, 
         xo[k, i] = acc
 
 
+@njit(cache=True, inline="always")
+def _add_information_h(Y, y, m, R, z, Ri, work):  # type: ignore[no-untyped-def]
+    """:func:`_add_information` for ``H = [I_m 0]``: the same sums without the products by
+    ``H``'s zeros and ones (equal bit for bit for finite inputs; ``0.0 + v`` as the
+    generic sum starts)."""
+    inv_into(R, Ri, work)
+    for i in range(m):
+        for j in range(m):
+            hr = 0.0 + Ri[i, j]
+            y[i] += hr * z[j]
+            Y[i, j] += hr
+
+
+@njit(cache=True, inline="always")
+def _product_row_h(x, P, zL, RL, hL, zA, RA, hA, k, xo, Po, Y, Pn, w4, y, RiL, wL, RiA, wA):  # type: ignore[no-untyped-def]
+    """:func:`_product_row` with ``H_L`` = :data:`H_POSITION`, ``H_A`` = :data:`H_FULL`
+    (:func:`_add_information_h`); the tracker's fused kernel uses it."""
+    if not (hL[k] or hA[k]):
+        return
+    inv_into(P[k], Y, w4)
+    for i in range(4):
+        acc = 0.0
+        for j in range(4):
+            acc += Y[i, j] * x[k, j]
+        y[i] = acc
+    if hL[k]:
+        _add_information_h(Y, y, 2, RL[k], zL[k], RiL, wL)
+    if hA[k]:
+        _add_information_h(Y, y, 4, RA[k], zA[k], RiA, wA)
+    for i in range(4):
+        for j in range(i + 1, 4):
+            v = 0.5 * (Y[i, j] + Y[j, i])
+            Y[i, j] = v
+            Y[j, i] = v
+    inv_into(Y, Pn, w4)
+    for i in range(4):
+        acc = 0.0
+        for j in range(4):
+            v = 0.5 * (Pn[i, j] + Pn[j, i])
+            Po[k, i, j] = v
+            acc += v * y[j]
+        xo[k, i] = acc
+
+
 @njit(cache=True)
 def _product_kernel(x, P, zL, RL, hL, HL, zA, RA, hA, HA):  # type: ignore[no-untyped-def]
     n = x.shape[0]

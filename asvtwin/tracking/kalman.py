@@ -57,35 +57,55 @@ H_FULL.flags.writeable = False
 
 
 @njit(cache=True)
+def _predict_row(x, P, k, h, qk, xo, Po, o):  # type: ignore[no-untyped-def]
+    """CV prediction of target ``k`` of ``x``/``P`` by ``h`` seconds (noise ``qk``) into
+    row ``o`` of ``xo``/``Po``. :func:`_predict_kernel` and the tracker's in-place
+    prediction share it."""
+    for i in range(4):
+        xo[o, i] = x[k, i]
+    # x = A x
+    xo[o, 0] += h * x[k, 2]
+    xo[o, 1] += h * x[k, 3]
+    # P = A P A^T + Q, by 2x2 blocks [[Pp, Ppv], [Pvp, Pv]]
+    for i in range(2):
+        for j in range(2):
+            Po[o, i, j] = (P[k, i, j] + h * (P[k, i, j + 2] + P[k, i + 2, j])
+                           + h * h * P[k, i + 2, j + 2])
+            Po[o, i, j + 2] = P[k, i, j + 2] + h * P[k, i + 2, j + 2]
+            Po[o, i + 2, j] = P[k, i + 2, j] + h * P[k, i + 2, j + 2]
+            Po[o, i + 2, j + 2] = P[k, i + 2, j + 2]
+    for i in range(2):
+        Po[o, i, i] += qk * h * h * h / 3.0
+        Po[o, i, i + 2] += qk * h * h / 2.0
+        Po[o, i + 2, i] += qk * h * h / 2.0
+        Po[o, i + 2, i + 2] += qk * h
+    for i in range(4):
+        for j in range(i + 1, 4):
+            v = 0.5 * (Po[o, i, j] + Po[o, j, i])
+            Po[o, i, j] = v
+            Po[o, j, i] = v
+
+
+@njit(cache=True)
 def _predict_kernel(x, P, dt, q):  # type: ignore[no-untyped-def]
     n = x.shape[0]
-    xo = x.copy()
+    xo = np.empty_like(x)
     Po = np.empty_like(P)
     for k in range(n):
-        h = dt[k]
-        qk = q[k]
-        # x = A x
-        xo[k, 0] += h * x[k, 2]
-        xo[k, 1] += h * x[k, 3]
-        # P = A P A^T + Q, by 2x2 blocks [[Pp, Ppv], [Pvp, Pv]]
-        for i in range(2):
-            for j in range(2):
-                Po[k, i, j] = (P[k, i, j] + h * (P[k, i, j + 2] + P[k, i + 2, j])
-                               + h * h * P[k, i + 2, j + 2])
-                Po[k, i, j + 2] = P[k, i, j + 2] + h * P[k, i + 2, j + 2]
-                Po[k, i + 2, j] = P[k, i + 2, j] + h * P[k, i + 2, j + 2]
-                Po[k, i + 2, j + 2] = P[k, i + 2, j + 2]
-        for i in range(2):
-            Po[k, i, i] += qk * h * h * h / 3.0
-            Po[k, i, i + 2] += qk * h * h / 2.0
-            Po[k, i + 2, i] += qk * h * h / 2.0
-            Po[k, i + 2, i + 2] += qk * h
-        for i in range(4):
-            for j in range(i + 1, 4):
-                v = 0.5 * (Po[k, i, j] + Po[k, j, i])
-                Po[k, i, j] = v
-                Po[k, j, i] = v
+        _predict_row(x, P, k, dt[k], q[k], xo, Po, k)
     return xo, Po
+
+
+@njit(cache=True)
+def _predict_in_place(x, P, h, qk):  # type: ignore[no-untyped-def]
+    """:func:`_predict_kernel` of all rows by one step ``h``, written back into ``x``, ``P``."""
+    xs, Ps = np.empty((1, 4)), np.empty((1, 4, 4))
+    for k in range(x.shape[0]):
+        _predict_row(x, P, k, h, qk, xs, Ps, 0)
+        for i in range(4):
+            x[k, i] = xs[0, i]
+            for j in range(4):
+                P[k, i, j] = Ps[0, i, j]
 
 
 @njit(cache=True)

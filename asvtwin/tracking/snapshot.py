@@ -17,6 +17,7 @@ __all__ = ["TRACK_STATUS", "TrackSnapshot"]
 #: Track statuses: tentative (not yet M of N), confirmed (updated this tick), coasting
 #: (confirmed, predicted only this tick).
 TRACK_STATUS = ("tentative", "confirmed", "coasting")
+_STR = {str}
 
 
 def _ro(a: ArrayLike, dtype: type) -> NDArray:  # type: ignore[type-arg]
@@ -77,11 +78,12 @@ class TrackSnapshot:
         """Copy the arrays into a read-only snapshot (``mmsi < 0`` means none)."""
         # (a tuple of str is taken as it is: the tracker builds one per tick, 200 strings
         # through a numpy string array cost ~50 µs)
-        st = status if isinstance(status, tuple) and all(type(v) is str for v in status) else \
+        st = status if isinstance(status, tuple) and set(map(type, status)) <= _STR else \
             tuple(np.asarray(status, dtype=str).reshape(-1).tolist())
+        mm = np.asarray(mmsi, dtype=np.int64).reshape(-1).tolist()
         return cls(
             t_s=float(t_s), ids=_ro(ids, np.int64),
-            mmsi=tuple([m if m >= 0 else None for m in np.asarray(mmsi, dtype=np.int64).reshape(-1).tolist()]),
+            mmsi=tuple(mm) if not mm or min(mm) >= 0 else tuple([m if m >= 0 else None for m in mm]),
             mean=_ro(mean, np.float64).reshape(-1, 4), cov=_ro(cov, np.float64).reshape(-1, 4, 4),
             status=st,
             semi_axes_m=_ro(semi_axes_m, np.float64).reshape(-1, 2),

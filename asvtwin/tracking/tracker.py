@@ -46,7 +46,7 @@ from asvtwin.tracking.fusion import (
     fuse_covariance_intersection,
     fuse_gain_weighted,
 )
-from asvtwin.tracking.kalman import H_FULL, H_POSITION, _predict_kernel
+from asvtwin.tracking.kalman import _predict_in_place
 from asvtwin.tracking.measurement import (
     AisMeasurement,
     AisMeasurementBatch,
@@ -65,6 +65,8 @@ from asvtwin.tracking.tracker_kernels import (
     pair_measurements,
     position_mahalanobis,
     take_assigned,
+    take_tied,
+    tied_reports,
     update_and_fuse,
 )
 
@@ -258,11 +260,9 @@ class Tracker:
         n = a["x"].shape[0]
 
         # 1. predictor
-        if n:  # cv_predict's kernel (dt is checked above, q by TrackerConfig)
-            dts, qs = np.full(n, dt), np.full(n, float(cfg.q))
-            a["x"], a["P"] = _predict_kernel(a["x"], a["P"], dts, qs)
-            a["xL"], a["PL"] = _predict_kernel(a["xL"], a["PL"], dts, qs)
-            a["xA"], a["PA"] = _predict_kernel(a["xA"], a["PA"], dts, qs)
+        if n:  # cv_predict's arithmetic, in place (dt is checked above, q by TrackerConfig)
+            for xk, Pk in (("x", "P"), ("xL", "PL"), ("xA", "PA")):
+                _predict_in_place(a[xk], a[Pk], dt, float(cfg.q))
         a["gotL"] = np.zeros(n, bool)
         a["gotA"] = np.zeros(n, bool)
 
@@ -300,30 +300,24 @@ class Tracker:
         self._count("ais_stale", am.n_stale, "stale or future AIS reports dropped")
         ais_new = np.zeros(len(am), bool)
         if len(am):
-            # row of the track tied to each report's MMSI, -1 when none (MMSIs are unique)
-            tied = np.full(len(am), -1, np.int64)
-            if n:
-                order = np.argsort(a["mmsi"])
-                srt = a["mmsi"][order]  # untied tracks hold -1, never a valid MMSI
-                pos = np.minimum(np.searchsorted(srt, am.mmsi), n - 1)
-                tied = np.where(srt[pos] == am.mmsi, order[pos], -1).astype(np.int64)
-            tj = np.flatnonzero(tied >= 0)
+            # row of the track tied to each report's MMSI, -1 when none (MMSIs are unique),
+            # and the tied reports' position distance to their track
+            tied, tj, ti, d2 = tied_reports(am.mmsi, am.z, am.R, a["mmsi"], a["x"], a["P"])
             if tj.size:
-                ti = tied[tj]
-                d2 = position_mahalanobis(am.z[tj, :2] - a["x"][ti, :2], a["P"][ti, :2, :2], am.R[tj, :2, :2])
                 ok = d2 <= self._gA_tied
-                self._recover_identity(ti, tj, ok, am.z, am.R)
+                all_ok = bool(ok.all())
+                if not all_ok:
+                    self._recover_identity(ti, tj, ok, am.z, am.R)
                 self.last_nis["ais"] = d2[ok]
-                self._count("ais_gated_out", int((~ok).sum()), "AIS reports far from their own track rejected")
-                a["gotA"][ti[ok]] = True
-                zA[ti[ok]], RA[ti[ok]] = am.z[tj[ok]], am.R[tj[ok]]
-                a["ais_rej"][ti[ok]] = 0
-                a["ais_rej"][ti[~ok]] += 1
-                reseed = ti[~ok][a["ais_rej"][ti[~ok]] >= cfg.ais_reseed_after]
-                if reseed.size:
-                    self._count("ais_reseeded", reseed.size)
-                    a["mmsi"][reseed] = -1
-                    ais_new[tj[~ok][np.isin(ti[~ok], reseed)]] = True
+                n_out = int(ti.size - ok.sum())
+                self._count("ais_gated_out", n_out, "AIS reports far from their own track rejected")
+                take_tied(ti, tj, ok, am.z, am.R, a["gotA"], zA, RA, a["ais_rej"])
+                if n_out:
+                    reseed = ti[~ok][a["ais_rej"][ti[~ok]] >= cfg.ais_reseed_after]
+                    if reseed.size:
+                        self._count("ais_reseeded", reseed.size)
+                        a["mmsi"][reseed] = -1
+                        ais_new[tj[~ok][np.isin(ti[~ok], reseed)]] = True
             uj = np.flatnonzero(tied < 0)
             if uj.size:
                 ui = np.flatnonzero(a["mmsi"] < 0)
@@ -350,8 +344,8 @@ class Tracker:
         # 4. updater, 5. confirmation, 6. deleter: one pass each over the tracks
         v2 = self.config.init_velocity_std_m_s ** 2
         product = cfg.fusion == "product"  # fuse_product's arithmetic: zL/RL, zA/RA are finite, 0/I where absent
-        update_and_fuse(a["x"], a["P"], a["xL"], a["PL"], a["GL"], a["hasL"], a["tL"], a["gotL"], zL, RL, H_POSITION,
-                        a["xA"], a["PA"], a["GA"], a["hasA"], a["tA"], a["gotA"], zA, RA, H_FULL, t, v2, product)
+        update_and_fuse(a["x"], a["P"], a["xL"], a["PL"], a["GL"], a["hasL"], a["tL"], a["gotL"], zL, RL,
+                        a["xA"], a["PA"], a["GA"], a["hasA"], a["tA"], a["gotA"], zA, RA, t, v2, product)
         if not product:
             self._fuse_filters(t)
         check_v = bool(np.isfinite(cfg.confirm_velocity_std_m_s))
@@ -583,11 +577,8 @@ class Tracker:
         if a["x"].shape[0]:
             # a track tied to an MMSI with a fresh report is where its AIS says: a cluster
             # near its fused estimate but away from its AIS-only one is another vessel
-            fresh = (a["mmsi"] >= 0) & a["hasA"] & (t - a["tA"] <= cfg.fusion_window_s)
-            xs = np.where(fresh[:, None], a["xA"], a["x"])
-            Ps = np.where(fresh[:, None, None], a["PA"], a["P"])
-            near = near_tracks(z, R, xs, Ps, np.ascontiguousarray(a["axes"][:, 0]),
-                               float(cfg.min_separation_m), self._gL)
+            near = near_tracks(z, R, a["x"], a["P"], a["xA"], a["PA"], a["mmsi"], a["hasA"], a["tA"], t,
+                               float(cfg.fusion_window_s), a["axes"], float(cfg.min_separation_m), self._gL)
             self._count("init_suppressed", int(near.sum()))
             z, R = z[~near], R[~near]
         if not len(z):
@@ -616,7 +607,7 @@ class Tracker:
         a = self._a
         # 0 tentative, 1 confirmed (updated this tick), 2 coasting: TRACK_STATUS[code]
         code = a["confirmed"] * (2 - (a["gotL"] | a["gotA"]))
-        status = tuple([TRACK_STATUS[c] for c in code.tolist()])
+        status = tuple(map(TRACK_STATUS.__getitem__, code.tolist()))
         nan4 = np.full_like(a["x"], np.nan)
         return TrackSnapshot.build(
             t_s=t, ids=a["ids"], mmsi=a["mmsi"], mean=a["x"], cov=a["P"], status=status,

@@ -16,7 +16,7 @@ from numba import njit
 # compiles _hull_box_one into itself, so a change to hull_model.py must come with a change
 # to this file (or a cleared __pycache__), else the cached kernel keeps the old model
 # (it did once, silently, while the range-limit model was written).
-from asvtwin.tracking.fusion import _product_row
+from asvtwin.tracking.fusion import _product_row_h
 from asvtwin.tracking.hull_model import _hull_box_one
 from asvtwin.tracking.kalman import _update_row_h
 
@@ -61,13 +61,16 @@ def _take_row(x, P, G, i, xs, Ps, K, m):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def update_and_fuse(x, P, xL, PL, GL, hasL, tL, gotL, zL, RL, HL, xA, PA, GA, hasA, tA, gotA, zA, RA, HA, t, v2,
+def update_and_fuse(x, P, xL, PL, GL, hasL, tL, gotL, zL, RL, xA, PA, GA, hasA, tA, gotA, zA, RA, t, v2,
                     product):  # type: ignore[no-untyped-def]
     """The tick's updater in one pass over the tracks, in place: each per-sensor filter
     that got a measurement is updated (Joseph form, ``G = K H``: the arithmetic of the
     generic row, :func:`~asvtwin.tracking.kalman._update_row_h`) or started (:func:`_initial_row`) and stamped ``t``; with ``product`` the
     fused estimate ``x``, ``P`` is the product of its prediction and the measurements
-    (:func:`asvtwin.tracking.fusion._product_kernel`'s arithmetic)."""
+    (:func:`asvtwin.tracking.fusion._product_kernel`'s arithmetic, specialised for the two
+    ``H``: :func:`~asvtwin.tracking.fusion._product_row_h`): LiDAR measures the position
+    (:data:`~asvtwin.tracking.kalman.H_POSITION`), AIS position and velocity
+    (:data:`~asvtwin.tracking.kalman.H_FULL`)."""
     n = x.shape[0]
     xs, Ps = np.empty((1, 4)), np.empty((1, 4, 4))
     A, B = np.empty((4, 4)), np.empty((4, 4))
@@ -93,7 +96,7 @@ def update_and_fuse(x, P, xL, PL, GL, hasL, tL, gotL, zL, RL, HL, xA, PA, GA, ha
                 hasA[i] = True
             tA[i] = t
         if product:  # in place: the row's prior is read before its posterior is written
-            _product_row(x, P, zL, RL, gotL, HL, zA, RA, gotA, HA, i, x, P, Y, Pn, w4, yv, SiL, wL, SiA, wA)
+            _product_row_h(x, P, zL, RL, gotL, zA, RA, gotA, i, x, P, Y, Pn, w4, yv, SiL, wL, SiA, wA)
 
 
 @njit(cache=True)
@@ -177,23 +180,29 @@ def position_mahalanobis(dz, P, R):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def near_tracks(z, R, x, P, axes_major, min_sep, gamma):  # type: ignore[no-untyped-def]
+def near_tracks(z, R, x, P, xA, PA, mmsi, hasA, tA, t, window, axes, min_sep, gamma):  # type: ignore[no-untyped-def]
     """Which measurements ``z (k, 2)`` lie near a track: closer than
     ``max(min_sep, semi-major + 10 m)`` or inside its χ² gate (the arithmetic of
-    :func:`asvtwin.tracking.association.gated_costs`)."""
+    :func:`asvtwin.tracking.association.gated_costs`). A track tied to an MMSI
+    (``mmsi >= 0``) with an AIS-only filter updated within ``window`` of ``t`` stands at
+    that filter (``xA``, ``PA``), others at ``x``, ``P``; ``axes (n, 2)``: the semi-axes."""
     k, n = z.shape[0], x.shape[0]
     out = np.zeros(k, np.bool_)
+    fresh = np.empty(n, np.bool_)
+    for i in range(n):
+        fresh[i] = mmsi[i] >= 0 and hasA[i] and t - tA[i] <= window
     for j in range(k):
         for i in range(n):
-            dn, de = z[j, 0] - x[i, 0], z[j, 1] - x[i, 1]
-            ax = axes_major[i]
+            xs, Ps = (xA, PA) if fresh[i] else (x, P)
+            dn, de = z[j, 0] - xs[i, 0], z[j, 1] - xs[i, 1]
+            ax = axes[i, 0]
             sep = max(min_sep, (0.0 if np.isnan(ax) else ax) + 10.0)
             if np.hypot(dn, de) < sep:
                 out[j] = True
                 break
-            a = P[i, 0, 0] + R[j, 0, 0]
-            b = P[i, 0, 1] + R[j, 0, 1]
-            c = P[i, 1, 1] + R[j, 1, 1]
+            a = Ps[i, 0, 0] + R[j, 0, 0]
+            b = Ps[i, 0, 1] + R[j, 0, 1]
+            c = Ps[i, 1, 1] + R[j, 1, 1]
             if dn * dn + de * de > gamma * (a + c):
                 continue
             det = a * c - b * b
@@ -203,6 +212,63 @@ def near_tracks(z, R, x, P, axes_major, min_sep, gamma):  # type: ignore[no-unty
                 out[j] = True
                 break
     return out
+
+
+@njit(cache=True)
+def tied_reports(am_mmsi, am_z, am_R, mmsi, x, P):  # type: ignore[no-untyped-def]
+    """The track row tied to each AIS report's MMSI (-1: none; untied tracks hold -1,
+    never a valid MMSI, and MMSIs are unique), the tied reports ``tj`` and their tracks
+    ``ti``, and each tied report's squared position distance to its track
+    (:func:`position_mahalanobis`' arithmetic)."""
+    k, n = am_mmsi.shape[0], mmsi.shape[0]
+    tied = np.full(k, -1, np.int64)
+    if n:
+        order = np.argsort(mmsi)
+        srt = mmsi[order]
+        pos = np.searchsorted(srt, am_mmsi)
+        for j in range(k):
+            p = min(pos[j], n - 1)
+            if srt[p] == am_mmsi[j]:
+                tied[j] = order[p]
+    cnt = 0
+    for j in range(k):
+        if tied[j] >= 0:
+            cnt += 1
+    tj = np.empty(cnt, np.int64)
+    ti = np.empty(cnt, np.int64)
+    d2 = np.empty(cnt)
+    q = 0
+    for j in range(k):
+        i = tied[j]
+        if i < 0:
+            continue
+        tj[q], ti[q] = j, i
+        a = P[i, 0, 0] + am_R[j, 0, 0]
+        b = P[i, 0, 1] + am_R[j, 0, 1]
+        c = P[i, 1, 1] + am_R[j, 1, 1]
+        det = a * c - b * b
+        dn, de = am_z[j, 0] - x[i, 0], am_z[j, 1] - x[i, 1]
+        d2[q] = (c * dn * dn - 2.0 * b * dn * de + a * de * de) / det if det > 0.0 else np.inf
+        q += 1
+    return tied, tj, ti, d2
+
+
+@njit(cache=True)
+def take_tied(ti, tj, ok, am_z, am_R, gotA, zA, RA, ais_rej):  # type: ignore[no-untyped-def]
+    """Tied AIS reports ``tj`` that passed their track's gate (``ok``) go to their track
+    ``ti`` (``zA``, ``RA``, ``gotA``; the rejection count reset); the others count a
+    rejection."""
+    for q in range(ti.shape[0]):
+        i, j = ti[q], tj[q]
+        if ok[q]:
+            gotA[i] = True
+            for r in range(4):
+                zA[i, r] = am_z[j, r]
+                for c in range(4):
+                    RA[i, r, c] = am_R[j, r, c]
+            ais_rej[i] = 0
+        else:
+            ais_rej[i] += 1
 
 
 @njit(cache=True)

@@ -66,16 +66,16 @@ def test_update_and_fuse_equals_the_generic_kernels_bit_for_bit(seed: int) -> No
                                          ref["zA"], ref["RA"], ref["gotA"], H_FULL)
     got = {k: v.copy() for k, v in d.items()}
     update_and_fuse(got["x"], got["P"], got["xL"], got["PL"], got["GL"], got["hasL"], got["tL"], got["gotL"], got["zL"],
-                    got["RL"], H_POSITION, got["xA"], got["PA"], got["GA"], got["hasA"], got["tA"], got["gotA"],
-                    got["zA"], got["RA"], H_FULL, t, v2, True)
+                    got["RL"], got["xA"], got["PA"], got["GA"], got["hasA"], got["tA"], got["gotA"],
+                    got["zA"], got["RA"], t, v2, True)
     assert (d["gotL"] & d["hasL"]).sum() > 50 and (d["gotA"] & ~d["hasA"]).sum() > 20  # all cases present
     for k, want in ref.items():
         np.testing.assert_array_equal(got[k], want, err_msg=k)
     # without product fusion the fused estimate is left to the caller
     again = {k: v.copy() for k, v in d.items()}
     update_and_fuse(again["x"], again["P"], again["xL"], again["PL"], again["GL"], again["hasL"], again["tL"],
-                    again["gotL"], again["zL"], again["RL"], H_POSITION, again["xA"], again["PA"], again["GA"],
-                    again["hasA"], again["tA"], again["gotA"], again["zA"], again["RA"], H_FULL, t, v2, False)
+                    again["gotL"], again["zL"], again["RL"], again["xA"], again["PA"], again["GA"],
+                    again["hasA"], again["tA"], again["gotA"], again["zA"], again["RA"], t, v2, False)
     np.testing.assert_array_equal(again["x"], d["x"])
     np.testing.assert_array_equal(again["xA"], ref["xA"])
 
