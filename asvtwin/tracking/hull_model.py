@@ -132,18 +132,16 @@ def _axis(near, far, sign, g_near, g_far_lo, g_far_hi, kappa, near_kappa):  # ty
     return c, 0.25 * (kappa * v_far + near_kappa * v_near), 0.25 * (v_far + v_near)
 
 
+#: Per-cluster line-of-sight summary (:func:`_sight`): centroid (2), range to it, range of
+#: the farthest return, unit line of sight (2), extreme bearings about it (2).
+N_SIGHT = 8
+
+
 @njit(cache=True)
-def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, prm, z, R, ext, R1, row,  # type: ignore[no-untyped-def]
-                  size_l=np.nan, size_b=np.nan):
-    """The hull-centre model of the ``n`` returns ``points[s:s + n]`` (hull axis
-    ``heading_i``, NaN: unknown; occluder shadows ``shadow[si]``), written to row ``row``
-    of ``z``, ``R``, ``ext``, ``R1`` (see :func:`hull_box_kernel`). ``size_l``, ``size_b``:
-    the hull's known length and beam [m] (AIS static data of the track's MMSI; NaN:
-    unknown, bounded by the length/beam ratio), used only with a known axis; they are
-    taken to ``prm[15]`` relative (at least ``prm[16]`` m)."""
-    rs, bs, step, rho_lo, rho_hi, ktip, ostd, floor = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7]
-    kgap, taper, a_lo, a_hi, kappa, max_hidden = prm[8], prm[9], prm[10], prm[11], prm[12], prm[13]
-    # line of sight to the centroid, range, ray spacing
+def _sight(points, s, n, o0, o1, sg):  # type: ignore[no-untyped-def]
+    """The line of sight to returns ``points[s:s + n]`` from ``(o0, o1)`` into ``sg``
+    (:data:`N_SIGHT` values: ``c0, c1, r, r_far, l0, l1, amin, amax``). It depends on the
+    returns alone, so a cluster measured with several hull axes computes it once."""
     c0 = c1 = 0.0
     for j in range(n):
         c0 += points[s + j, 0]
@@ -158,6 +156,30 @@ def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, pr
         l0, l1 = (c0 - o0) / r, (c1 - o1) / r
     else:
         l0, l1 = 1.0, 0.0
+    amin, amax = 0.0, 0.0
+    if n >= 2:  # bearings of the extreme returns about the line of sight to the centroid
+        amin, amax = np.inf, -np.inf
+        for j in range(n):
+            a = np.arctan2(-(points[s + j, 0] - o0) * l1 + (points[s + j, 1] - o1) * l0,
+                           (points[s + j, 0] - o0) * l0 + (points[s + j, 1] - o1) * l1)
+            amin, amax = min(amin, a), max(amax, a)
+    sg[0], sg[1], sg[2], sg[3], sg[4], sg[5], sg[6], sg[7] = c0, c1, r, r_far, l0, l1, amin, amax
+
+
+@njit(cache=True)
+def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, prm, z, R, ext, R1, row,  # type: ignore[no-untyped-def]
+                  size_l, size_b, sg):
+    """The hull-centre model of the ``n`` returns ``points[s:s + n]`` (hull axis
+    ``heading_i``, NaN: unknown; occluder shadows ``shadow[si]``; line of sight ``sg``
+    from :func:`_sight`), written to row ``row`` of ``z``, ``R``, ``ext``, ``R1`` (see
+    :func:`hull_box_kernel`). ``size_l``, ``size_b``: the hull's known length and beam [m]
+    (AIS static data of the track's MMSI; NaN: unknown, bounded by the length/beam ratio),
+    used only with a known axis; they are taken to ``prm[15]`` relative (at least
+    ``prm[16]`` m)."""
+    rs, bs, step, rho_lo, rho_hi, ktip, ostd, floor = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7]
+    kgap, taper, a_lo, a_hi, kappa, max_hidden = prm[8], prm[9], prm[10], prm[11], prm[12], prm[13]
+    # line of sight to the centroid, range, ray spacing
+    r, r_far, l0, l1, amin, amax = sg[2], sg[3], sg[4], sg[5], sg[6], sg[7]
     ray = prm[14]  # the scan's ray spacing (0: unknown)
     amin, amax = 0.0, 0.0
     if n >= 2:  # bearings of the extreme returns about the line of sight to the centroid
@@ -332,7 +354,8 @@ def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, pr
 def hull_box_kernel(points, offsets, origin, heading, heading_std, shadow, prm, only_known, sizes):  # type: ignore[no-untyped-def]
     """Centres ``z (k, 2)``, covariances ``R (k, 2, 2)`` (the unseen-depth part scaled by
     ``kappa``: for a filter), box extents ``ext (k, 2)`` ``[along, across]`` and the
-    single-scan covariances ``R1`` (kappa = 1: for gates) of all clusters.
+    single-scan covariances ``R1`` (kappa = 1: for gates) of all clusters, and each
+    cluster's line of sight (:func:`_sight`, ``(k, N_SIGHT)``; NaN rows where skipped).
 
     ``heading[i]`` is the hull axis of cluster ``i`` [rad] (NaN: unknown, the box
     orientation is used and the axes are ambiguous), ``heading_std`` its standard
@@ -352,13 +375,15 @@ def hull_box_kernel(points, offsets, origin, heading, heading_std, shadow, prm, 
     R = np.full((k, 2, 2), np.nan)
     R1 = np.full((k, 2, 2), np.nan)
     ext = np.full((k, 2), np.nan)
+    sight = np.full((k, N_SIGHT), np.nan)
     for i in range(k):
         s, n = offsets[i], offsets[i + 1] - offsets[i]
         if n == 0 or (only_known and not np.isfinite(heading[i])):
             continue
+        _sight(points, s, n, origin[0], origin[1], sight[i])
         _hull_box_one(points, s, n, origin[0], origin[1], heading[i], heading_std[i], shadow, i, prm, z, R, ext, R1, i,
-                      sizes[i, 0], sizes[i, 1])
-    return z, R, ext, R1
+                      sizes[i, 0], sizes[i, 1], sight[i])
+    return z, R, ext, R1, sight
 
 
 @njit(cache=True)
@@ -371,10 +396,13 @@ def hull_box_pairs_kernel(points, offsets, origin, cols, heading, heading_std, s
     R = np.full((k, 2, 2), np.nan)
     R1 = np.full((k, 2, 2), np.nan)
     ext = np.full((k, 2), np.nan)
+    sg = np.empty(N_SIGHT)
     for p in range(k):
         i = cols[p]
         s, n = offsets[i], offsets[i + 1] - offsets[i]
         if n == 0:
             continue
-        _hull_box_one(points, s, n, origin[0], origin[1], heading[p], heading_std[p], shadow, i, prm, z, R, ext, R1, p)
+        _sight(points, s, n, origin[0], origin[1], sg)
+        _hull_box_one(points, s, n, origin[0], origin[1], heading[p], heading_std[p], shadow, i, prm, z, R, ext, R1, p,
+                      np.nan, np.nan, sg)
     return z, R, ext, R1

@@ -264,6 +264,10 @@ class LidarMeasurements:
         The covariance for a filter update: ``R`` with the unseen-depth part scaled by
         ``LidarModel.depth_persistence`` (None: ``R`` itself). ``R`` (one scan) is for
         gates and association.
+    sight : ndarray, shape (k, 8), or None
+        With ``centre="hull_box"``: each cluster's line of sight from the sensor
+        (centroid, ranges, direction, extreme bearings; internal, reused when the tracker
+        measures a cluster again with a track's course).
     """
 
     z: _F8
@@ -272,6 +276,7 @@ class LidarMeasurements:
     used_fit: NDArray[np.bool_]
     extent_m: _F8 | None = None
     R_update: _F8 | None = None
+    sight: _F8 | None = None
 
     def __len__(self) -> int:
         return int(self.z.shape[0])
@@ -333,7 +338,7 @@ def hull_centres(clusters: Clusters, heading_rad: ArrayLike, heading_std_rad: Ar
     offsets = np.ascontiguousarray(clusters.offsets, dtype=np.int64)
     sizes = np.full((k, 2), np.nan) if size_m is None else \
         np.array(np.broadcast_to(np.asarray(size_m, np.float64), (k, 2)))
-    z, R, ext, _ = hull_box_kernel(points, offsets, origin, h, hs, _end_shadows(clusters), _hull_prm(mdl, clusters),
+    z, R, ext, _, _ = hull_box_kernel(points, offsets, origin, h, hs, _end_shadows(clusters), _hull_prm(mdl, clusters),
                                    only_known, sizes)
     return z, R, ext
 
@@ -397,10 +402,11 @@ def lidar_measurements(clusters: Clusters, model: LidarModel | None = None) -> L
     ext = np.full((len(z), 2), np.nan)
     if mdl.centre == "hull_box" and len(z):
         k = len(z)
-        z, Rf, ext, R = hull_box_kernel(points, offsets, origin, np.full(k, np.nan), np.zeros(k),
-                                        _end_shadows(clusters), _hull_prm(mdl, clusters), False, np.full((k, 2), np.nan))
+        z, Rf, ext, R, sight = hull_box_kernel(points, offsets, origin, np.full(k, np.nan), np.zeros(k),
+                                               _end_shadows(clusters), _hull_prm(mdl, clusters), False,
+                                               np.full((k, 2), np.nan))
         return LidarMeasurements(z=z, R=R, fits=EllipseFits.from_array(out), used_fit=use, extent_m=ext,
-                                 R_update=Rf)
+                                 R_update=Rf, sight=sight)
     return LidarMeasurements(z=z, R=R, fits=EllipseFits.from_array(out), used_fit=use, extent_m=ext)
 
 

@@ -87,6 +87,7 @@ class VesselDimensions(Protocol):
     def beam_m(self) -> float | None: ...
 
 _log = logging.getLogger(__name__)
+_NO_SIGHT = np.empty((0, 8))  # pair_measurements' line-of-sight rows when there are none (no course used)
 
 
 # per-track arrays, in this order; (shape tail, dtype, fill)
@@ -476,7 +477,7 @@ class Tracker:
         place (pairs that leave the gate or fail the identity gate become :data:`FORBIDDEN`).
         """
         a, cfg = self._a, self.config
-        use_course = mdl.centre == "hull_box" and bool(np.isfinite(cl.origin_ned).all())
+        use_course = mdl.centre == "hull_box" and bool(np.isfinite(cl.origin_ned).all()) and m.sight is not None
         # (clusters without the sensor position keep the fitted centre)
         ti, cj, zp, Rp, Rpu, wc, vetoed = pair_measurements(
             cost, a["x"], a["P"], m.z, m.R, m.R if m.R_update is None else m.R_update, use_course,
@@ -484,7 +485,8 @@ class Tracker:
             np.ascontiguousarray(cl.offsets, dtype=np.int64), np.asarray(cl.origin_ned, dtype=np.float64).reshape(2),
             _end_shadows(cl), _hull_prm(mdl, cl), mdl.heading_floor_rad, cfg.course_min_speed_m_s ** 2,
             cfg.course_max_std_rad ** 2, self._gL, FORBIDDEN, cfg.course_min_returns, self._track_dims(),
-            a["mmsi"], a["hasA"], a["tA"], a["xA"], a["PA"], t, cfg.max_coast_ais_s, self._gA_id)
+            a["mmsi"], a["hasA"], a["tA"], a["xA"], a["PA"], t, cfg.max_coast_ais_s, self._gA_id,
+            _NO_SIGHT if m.sight is None else m.sight)
         self._count("lidar_vetoed_by_ais", vetoed)
         return ti, cj, zp, Rp, Rpu, wc
 

@@ -299,14 +299,15 @@ def coincident(x, P, mmsi, gamma):  # type: ignore[no-untyped-def]
 @njit(cache=True)
 def pair_measurements(cost, x, P, z0, R0, Ru0, use_course, points, offsets, origin, shadow, prm, heading_floor,
                       min_speed2, max_course_var, gamma, forbidden, min_returns, dims, mmsi, hasA, tA, xA, PA, t,
-                      max_coast_ais, gamma_id):  # type: ignore[no-untyped-def]
+                      max_coast_ais, gamma_id, sight):  # type: ignore[no-untyped-def]
     """The measurement of every gated (track, cluster) pair (``cost < forbidden``, in
     ``np.nonzero`` order), measured again with the track's course where it has one
     (speed² ≥ ``min_speed2``, course variance ≤ ``max_course_var``; clusters of at least
     ``min_returns`` returns) and re-gated with it;
     ``cost`` is updated in place (:meth:`asvtwin.tracking.tracker.Tracker._pair_measurements`
     says why). ``dims (n, 2)``: each track's known length and beam [m] (NaN: unknown),
-    used with its course.
+    used with its course; ``sight (k, 8)``: each cluster's line of sight
+    (:func:`~asvtwin.tracking.hull_model._sight`, from the scan's axis-free pass).
 
     Then the AIS identity gate (:meth:`asvtwin.tracking.tracker.Tracker._ais_identity_gate`
     says why): a pair of a track tied to an MMSI (``mmsi >= 0``) with an AIS-only filter
@@ -346,7 +347,7 @@ def pair_measurements(cost, x, P, z0, R0, Ru0, use_course, points, offsets, orig
                 if sp2 >= min_speed2 and var <= max_course_var:
                     _hull_box_one(points, offsets[j], offsets[j + 1] - offsets[j], origin[0], origin[1],
                                   np.arctan2(v1, v0), max(np.sqrt(var), heading_floor), shadow, j, prm,
-                                  zp, Rpu, ext, Rp, p, dims[i, 0], dims[i, 1])
+                                  zp, Rpu, ext, Rp, p, dims[i, 0], dims[i, 1], sight[j])
                     wc[p] = True
                     # the pair's gate and cost with its own measurement (gated_costs' arithmetic)
                     a = P[i, 0, 0] + Rp[p, 0, 0]
