@@ -160,6 +160,7 @@ class SafetyFilter:
         self._plan: BackupPlan | None = None
         self._last: tuple[float, _F8, _F8] | None = None  # (t, x_pred, u_pred)
         self._solved_last = False  # the previous call ran the solver
+        self._fallback_t: float | None = None  # time of the last call ended on a fallback
         self._t: float | None = None
         self._prefer_starboard = False  # COLREG expects starboard (per call)
 
@@ -219,6 +220,7 @@ class SafetyFilter:
         """Forget the last plan and the solver's iterate (new episode)."""
         self._plan, self._last, self._t = None, None, None
         self._solved_last = False
+        self._fallback_t = None
         with backend_lock(self.backend):
             self.backend.reset()
 
@@ -338,7 +340,14 @@ class SafetyFilter:
         scored: list[tuple[str, str, float, bool]] = []
         rows: list[tuple] = []  # fallback candidates scored in this call
         chosen_kind, chosen_detail = Fallback.NONE, ""
-        for rnd in range(1 + cfg.uncertified_retries):
+        # a fallback streak: the previous call fell back too, within this plan's horizon.
+        # This call's solve is warm-started from that call's plan (from its best
+        # candidate when the solver's own plan cut into d_safe): it is that call's retry
+        prev_fb = self._fallback_t
+        streak = (not cfg.retry_in_streak and prev_fb is not None
+                  and 0.0 < t_s - prev_fb < N * dt)
+        retries = 0 if streak else cfg.uncertified_retries
+        for rnd in range(1 + retries):
             for _ in range(attempts):
                 self._slots.set_terminal(xg[-1, 3:])  # stage N as the guess ends
                 try:
@@ -394,6 +403,7 @@ class SafetyFilter:
         X, U, margins, term, cert, why, _ = best
         if cert:
             self._plan = BackupPlan(u=U, x=X, t0_s=t_s, dt_s=dt)
+        self._fallback_t = None if chosen_kind is Fallback.NONE else t_s
         reason = "" if chosen_kind is Fallback.NONE else f"solver: {solver_why}"
         return self._result(x, uL, u_given, U[0].copy(), X, U, margins, term, centres,
                             radii, segs, labels, moving, cert, status, reason, iters,
@@ -407,6 +417,7 @@ class SafetyFilter:
                       t_solve: float = 0.0) -> FilterResult:
         """Apply u_L, certified by the plan ``U`` that starts with it."""
         self._plan = BackupPlan(u=U, x=X, t0_s=t_s, dt_s=self.config.dt_s)
+        self._fallback_t = None
         if not solved:
             self._last = (t_s, X, U)
         self._solved_last = solved

@@ -302,3 +302,52 @@ def test_without_comfort_pass_through_the_brisk_plan_keeps_u_l_without_a_solve(p
     res = _call_with(psf, _Raising(psf.backend, AssertionError("no solve expected")), x, rock,
                      1.0)
     assert res.passed_through and "comfort" not in res.explanation
+
+
+class _Uncertifiable(_Raising):
+    """A backend whose every plan is full ahead into the rock (solver "ok", never
+    certified); counts its solves."""
+
+    def __init__(self, inner, psf):
+        super().__init__(inner, None)
+        self.psf, self.solves = psf, 0
+
+    def solve(self, x0, u_L, P, xg, ug):
+        self.solves += 1
+        U = np.tile(FULL_AHEAD, (self.spec.N, 1))
+        return RawSolution(x=self.psf.rollout(x0, U), u=U, max_slack=0.0, success=True,
+                           status="ok", iterations=1, solve_time_s=0.0)
+
+
+@pytest.mark.parametrize("retry_in_streak", [True, False])
+def test_a_fallback_streak_skips_the_retry_only_when_asked_and_still_falls_back(
+        params, default_backend, retry_in_streak):
+    """retry_in_streak=False: a call whose predecessor (less than a horizon earlier)
+    fell back makes one solve, not two, and still ends on a checked fallback candidate,
+    never on the uncertified u_L; the first fallback of a streak, and one after a gap
+    longer than the horizon, still retry."""
+    psf = SafetyFilter(params, config=PsfConfig(backend=default_backend,
+                                                retry_in_streak=retry_in_streak))
+    rock = CircleObstacles([[7.0, 0.0]], [2.0])  # no plan that keeps u_L certifies
+    x = np.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.0])
+    fake = _Uncertifiable(psf.backend, psf)
+    psf.reset()
+    solves, results = [], []
+    horizon = psf.config.N * psf.config.dt_s
+    for t in (0.0, 0.5, 1.0, 1.0 + 1.5 * horizon):
+        before = fake.solves
+        res = _call_with(psf, fake, x, rock, t)
+        solves.append(fake.solves - before)
+        results.append(res)
+    for res in results:
+        assert res.fallback != "none" and not res.success
+        assert "plan violates obstacle clearance" in res.reason
+        assert not np.allclose(res.u0, [1.0, 0, 0])  # never the uncertified u_L
+        # the applied input starts the plan of a scored (checked) candidate
+        assert res.candidates and res.fallback in {c[0] for c in res.candidates}
+        np.testing.assert_array_equal(res.u0, res.u_pred[0])
+    # first call: cold start (cold_start_solves) plus one retry; later: 1 + 1 retry
+    assert solves[0] == psf.config.cold_start_solves + 1
+    assert solves[1:3] == ([2, 2] if retry_in_streak else [1, 1])
+    assert solves[3] == 2  # more than a horizon after the last fallback: no streak
+
