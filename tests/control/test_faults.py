@@ -351,3 +351,20 @@ def test_a_fallback_streak_skips_the_retry_only_when_asked_and_still_falls_back(
     assert solves[1:3] == ([2, 2] if retry_in_streak else [1, 1])
     assert solves[3] == 2  # more than a horizon after the last fallback: no streak
 
+
+def test_hpipm_mode_is_checked():
+    with pytest.raises(ConfigError, match="hpipm_mode"):
+        PsfConfig(hpipm_mode="FAST")
+
+
+@pytest.mark.skipif("acados" not in available_backends(), reason="acados not installed")
+def test_hpipm_speed_mode_is_its_own_solver_and_keeps_the_ship_clear(params, psf):
+    """HPIPM's SPEED mode (the RL world's) is a separately built solver; its plans are
+    certified like any other: a full-ahead learner towards a rock stays ≥ d_safe − tol."""
+    fast = SafetyFilter(params, config=PsfConfig(backend="acados", hpipm_mode="SPEED"))
+    assert fast.backend is not psf.backend
+    rock = CircleObstacles([[12.0, 0.3]], [1.5])
+    out, _ = _run(fast, np.array([0.0, 0, 0, 0.5, 0, 0]), FULL_AHEAD, rock, 40)
+    gaps = [math.hypot(x[0] - 12.0, x[1] - 0.3) - 1.5 for x, _ in out]
+    assert min(gaps) >= fast.d_safe_m - fast.certify_tol_m
+    assert any(r.intervened for _, r in out) and sum(r.success for _, r in out) > 30
