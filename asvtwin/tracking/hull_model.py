@@ -98,19 +98,47 @@ _ANGLES = _angle_table()
 
 
 @njit(cache=True)
+def _box_areas(pts, s, n, r0, na, out):  # type: ignore[no-untyped-def]
+    """:func:`_box_area` of returns ``s..s+n-1`` for the ``na`` angles of rows
+    ``r0..r0+na-1`` of :data:`_ANGLES` into ``out[:na]``: the same projections, extremes
+    (the first return starts them, as in :func:`_extents`) and area, value for value,
+    without the per-return branch on the first one and the call per angle (~20 % of the
+    orientation search)."""
+    for a in range(na):
+        c, sn = _ANGLES[r0 + a, 1], _ANGLES[r0 + a, 2]
+        x, y = pts[s, 0], pts[s, 1]
+        s0 = x * c + y * sn
+        t0 = -x * sn + y * c
+        s1, t1 = s0, t0
+        for j in range(s + 1, s + n):
+            x, y = pts[j, 0], pts[j, 1]
+            p = x * c + y * sn
+            q = -x * sn + y * c
+            # (selects, not min/max: the same values, ~10 % faster in numba here)
+            s0 = p if p < s0 else s0  # noqa: FURB136
+            s1 = p if p > s1 else s1  # noqa: FURB136
+            t0 = q if q < t0 else t0  # noqa: FURB136
+            t1 = q if q > t1 else t1  # noqa: FURB136
+        out[a] = (s1 - s0) * (t1 - t0) + 1e-6 * ((s1 - s0) + (t1 - t0))
+
+
+@njit(cache=True)
 def _box_orientation(pts, s, n):  # type: ignore[no-untyped-def]
     """Direction [rad] of the smallest-area bounding rectangle (mod π/2): 5° steps over
-    90°, then 1° around the best (angles from :data:`_ANGLES`)."""
+    90°, then 1° around the best (angles from :data:`_ANGLES`; the areas of each stage in
+    one pass over the returns, :func:`_box_areas`)."""
+    areas = np.empty(_COARSE)
     best, th, cb = np.inf, 0.0, 0
+    _box_areas(pts, s, n, 0, _COARSE, areas)
     for i in range(_COARSE):
-        v = _box_area(pts, s, n, _ANGLES[i, 1], _ANGLES[i, 2])
+        v = areas[i]
         if v < best:
             best, th, cb = v, _ANGLES[i, 0], i
+    _box_areas(pts, s, n, _COARSE + cb * _FINE, _FINE, areas)
     for i in range(_FINE):
-        r = _COARSE + cb * _FINE + i
-        v = _box_area(pts, s, n, _ANGLES[r, 1], _ANGLES[r, 2])
+        v = areas[i]
         if v < best:
-            best, th = v, _ANGLES[r, 0]
+            best, th = v, _ANGLES[_COARSE + cb * _FINE + i, 0]
     return th
 
 

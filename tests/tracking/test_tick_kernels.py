@@ -146,3 +146,42 @@ def test_gnn_assign_equals_scipy_on_the_allowed_block(seed: int) -> None:
     np.testing.assert_array_equal(cols, c_idx[cc[ok]])
     assert rows.dtype == cols.dtype == np.int64 and rows.size > 5
     assert 3 not in rows and 5 not in cols
+
+
+def test_box_orientation_equals_the_per_angle_search() -> None:
+    # the orientation search's areas in one pass per stage (_box_areas) pick the angle the
+    # per-angle _box_area search picks, on ellipses, L-shapes and near-collinear flanks
+    from numba import njit
+
+    from asvtwin.tracking.hull_model import _ANGLES, _COARSE, _FINE, _box_area, _box_orientation
+
+    @njit
+    def per_angle(pts, s, n):  # type: ignore[no-untyped-def]
+        best, th, cb = np.inf, 0.0, 0
+        for i in range(_COARSE):
+            v = _box_area(pts, s, n, _ANGLES[i, 1], _ANGLES[i, 2])
+            if v < best:
+                best, th, cb = v, _ANGLES[i, 0], i
+        for i in range(_FINE):
+            r = _COARSE + cb * _FINE + i
+            v = _box_area(pts, s, n, _ANGLES[r, 1], _ANGLES[r, 2])
+            if v < best:
+                best, th = v, _ANGLES[r, 0]
+        return th
+
+    rng = np.random.default_rng(1)
+    for k in range(600):
+        n = int(rng.integers(1, 80))
+        L, B = rng.uniform(5.0, 60.0), rng.uniform(2.0, 15.0)
+        u = rng.uniform(0.0, 1.0, n)
+        if k % 3 == 0:
+            p = np.column_stack([L * np.cos(2 * np.pi * u), B * np.sin(2 * np.pi * u)])
+        elif k % 3 == 1:
+            side = rng.uniform(size=n) < 0.5
+            p = np.where(side[:, None], np.column_stack([u * L, np.zeros(n)]), np.column_stack([np.zeros(n), u * B]))
+        else:
+            p = np.column_stack([u * L, rng.normal(0.0, 0.02, n)])
+        a = rng.uniform(-np.pi, np.pi)
+        p = p @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]]) + rng.uniform(-1500.0, 1500.0, 2)
+        p = np.ascontiguousarray(p + rng.normal(0.0, 0.05, p.shape))
+        assert _box_orientation(p, 0, n) == per_angle(p, 0, n)
