@@ -155,3 +155,24 @@ def test_own_ship_goes_astern_only_when_the_scenario_allows():
     astern = own_params(scenario(own_ship__astern=True))
     assert ahead.actuators.tau_min[0] == 0.0
     assert -astern.actuators.tau_min[0] == pytest.approx(0.6 * astern.actuators.tau_max[0], rel=0.01)
+
+
+def test_perception_warm_up_tracks_a_vessel_once_per_process_without_touching_the_twin():
+    """The build-time warm-up (kernels of a vessel in LiDAR range loaded at construction,
+    not at the first vessel in range mid-run) really drives the target path (its synthetic
+    vessel becomes a track), runs once per scene kind and config, and leaves the twin's
+    random generators alone."""
+    from asvtwin.sensors import Lidar, LidarConfig
+    from asvtwin.twin import runtime
+
+    sc = scenario()
+    twin = Twin(sc)
+    cfg = twin.perception.tracker.config
+    start = sc.own_ship.start.to_ned(twin.scene.frame)
+    lidar = Lidar(LidarConfig(n_rays=360, max_range_m=800.0, range_std_m=0.1))
+    runtime._WARMED.discard((twin.scene.land is None, repr(cfg)))
+    state = twin._rng_lidar.bit_generator.state
+    n = runtime.warm_perception(twin.scene, cfg, lidar, start, 0.1)
+    assert n is not None and n >= 1
+    assert runtime.warm_perception(twin.scene, cfg, lidar, start, 0.1) is None
+    assert twin._rng_lidar.bit_generator.state == state
