@@ -188,8 +188,20 @@ class Scored(NamedTuple):
     dist: float  #: ‖u_0 − u_L‖²_W, the size of the intervention
 
 
+def static_low(r: Scored, cert: Certifier) -> float:
+    """A candidate's closest approach to the *static* obstacles and the coast over stages
+    1..N against d_safe (their terminal requirement at N) [m]; +inf without any."""
+    static = cert.static_cols
+    mg = r.margins
+    if static is None or static.shape[0] != mg.shape[1] or not static.any():
+        return math.inf
+    path = float(mg[1:-1, static].min()) if mg.shape[0] > 2 else math.inf
+    return min(path, float(cert.terminal_clearance(mg, r.term)[static].min()))
+
+
 def select_candidate(rows: list[Scored], x: _F8, m0: _F8, cert: Certifier, *,
                      length_m: float, r_comfort: float, prefer_starboard: bool,
+                     previous: tuple[str, str] | None = None,
                      ) -> tuple[Scored, list[tuple[str, str, float, bool]]]:
     """The candidate to apply, and every candidate's score (kind, detail, closest
     approach [m], certified), best first.
@@ -203,8 +215,26 @@ def select_candidate(rows: list[Scored], x: _F8, m0: _F8, cert: Certifier, *,
     - Otherwise the largest closest approach; where COLREG expects starboard, a
       starboard or straight plan within 10 % of d_safe of it (and not inside d_safe
       where the best is outside) is taken instead. The choice says so in its detail.
+
+    Without a certified candidate the coast and static obstacles come first: a candidate
+    that keeps d_safe from them (or closes in on them least) beats one that is further
+    from a vessel's predicted clearance circle. The coast is where it is; a moving
+    obstacle's circle at a late stage is mostly the growth of its prediction's
+    uncertainty, and the next call re-plans with a fresher track. (The twin's hour-long
+    benchmark run, where no plan was certified for minutes in dense traffic, drove onto
+    the shore three times when both counted alike.) And the manoeuvre ``previous``
+    (kind, detail: the uncertified fallback applied at the last call) is kept while it
+    stays as good on the coast and within 10 % of d_safe of the best closest approach:
+    re-deciding from scratch every call alternated between turning to port, turning to
+    starboard and coasting, which together held the course the candidates turned from.
     """
     d_safe = cert.d_safe_m
+    m0_static = (m0[cert.static_cols] if cert.static_cols is not None
+                 and cert.static_cols.shape == m0.shape else np.zeros(0))
+    static_now = min(float(m0_static.min()), 0.0) if m0_static.size else 0.0
+
+    def coast(r: Scored) -> float:  # 0 when the static obstacles keep d_safe (or no worse)
+        return min(static_low(r, cert) - static_now + cert.tol_m, 0.0)
 
     def port(r: Scored) -> bool:
         return prefer_starboard and plan_side(r.X, length_m) < 0
@@ -233,13 +263,20 @@ def select_candidate(rows: list[Scored], x: _F8, m0: _F8, cert: Certifier, *,
             leaves = end >= -cert.tol_m
             return (leaves and bool(np.all(mg[1:-1] >= floor)), end, r.closest)
 
-        pick = max(rows, key=out_score)
+        pick = max(rows, key=lambda r: (coast(r), *out_score(r)))
     else:
-        pick = max(rows, key=closest)
+        pick = max(rows, key=lambda r: (coast(r), *closest(r)))
+        if previous is not None and (pick.kind.value, pick.detail) != previous:
+            keep = [r for r in rows if (r.kind.value, r.detail) == previous
+                    and coast(r) >= coast(pick) and r.closest >= pick.closest - 0.1 * d_safe
+                    and (pick.closest < 0 or r.closest >= 0)]
+            if keep:
+                pick = keep[0]
+                note = "the manoeuvre of the last call kept"
         if port(pick):
             lim = pick.closest - 0.1 * d_safe
             alt = [r for r in rows if not port(r) and r.closest >= lim
-                   and (pick.closest < 0 or r.closest >= 0)]
+                   and (pick.closest < 0 or r.closest >= 0) and coast(r) >= coast(pick)]
             if alt:
                 gap = pick.closest
                 pick = max(alt, key=closest)

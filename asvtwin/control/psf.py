@@ -163,6 +163,8 @@ class SafetyFilter:
         self._fallback_t: float | None = None  # time of the last call ended on a fallback
         self._t: float | None = None
         self._prefer_starboard = False  # COLREG expects starboard (per call)
+        # the uncertified fallback manoeuvre applied at the last call (kind, detail)
+        self._last_fallback: tuple[str, str] | None = None
 
     def _make_backend(self, cfg: PsfConfig) -> Backend:
         name = cfg.backend if cfg.backend != "auto" else available_backends()[0]
@@ -222,6 +224,7 @@ class SafetyFilter:
         self._plan, self._last, self._t = None, None, None
         self._solved_last = False
         self._fallback_t = None
+        self._last_fallback = None
         with backend_lock(self.backend):
             self.backend.reset()
 
@@ -406,6 +409,8 @@ class SafetyFilter:
             self._plan = BackupPlan(u=U, x=X, t0_s=t_s, dt_s=dt)
         self._fallback_t = None if chosen_kind is Fallback.NONE else t_s
         reason = "" if chosen_kind is Fallback.NONE else f"solver: {solver_why}"
+        self._last_fallback = (None if chosen_kind is Fallback.NONE or cert
+                               else (chosen_kind.value, chosen_detail.split("; ")[0]))
         return self._result(x, uL, u_given, U[0].copy(), X, U, margins, term, centres,
                             radii, segs, labels, moving, cert, status, reason, iters,
                             t_solve, chosen_kind, first, tuple(scored), notes,
@@ -419,6 +424,7 @@ class SafetyFilter:
         """Apply u_L, certified by the plan ``U`` that starts with it."""
         self._plan = BackupPlan(u=U, x=X, t0_s=t_s, dt_s=self.config.dt_s)
         self._fallback_t = None
+        self._last_fallback = None
         if not solved:
             self._last = (t_s, X, U)
         self._solved_last = solved
@@ -487,7 +493,7 @@ class SafetyFilter:
         return select_candidate(
             rows, x, m0, self._cert, length_m=self.params.length,
             r_comfort=float(self.nu_max[2]) * (1.0 + _COMFORT_TOL),
-            prefer_starboard=self._prefer_starboard)
+            prefer_starboard=self._prefer_starboard, previous=self._last_fallback)
 
     def _guess(self, x: _F8, u_L: _F8, d: _F8, t_s: float) -> tuple[_F8, _F8]:
         """Primal guess: the last plan shifted to ``t_s`` (its last stage repeated), or a
