@@ -41,7 +41,8 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--backend", default=available_backends()[0],
                     help="comma-separated backends (default: the fastest installed)")
-    ap.add_argument("--scale", default="model,full", help="model, full or both")
+    ap.add_argument("--scale", default="model,full",
+                    help="model, full, or both (comma-separated: model,full)")
     ap.add_argument("--cases", default="all", help="all, or comma-separated case names")
     args = ap.parse_args()
     cases = encounter_cases()
@@ -52,7 +53,10 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
     runs, settings = [], {}
     unfiltered = 0
     t0 = time.perf_counter()
-    for scale in args.scale.split(","):
+    scales = ["model", "full"] if args.scale == "both" else args.scale.split(",")
+    if bad := [s for s in scales if s not in hulls]:
+        ap.error(f"--scale: unknown {', '.join(bad)}; expected model, full or both")
+    for scale in scales:
         params = hulls[scale]()
         for c in cases:
             unfiltered += run_encounter(c, params, None).collisions
