@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from asvtwin.scenarios import default_scenario, resolve_scene
+from tests.conftest import full_run
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -56,3 +57,23 @@ def test_a_short_run_of_the_benchmark_scene_is_safe(bench):
     assert s.filter_calls == 60
     assert sum(s.fallbacks.values()) <= 2, s.text()  # was 59 of 60 with a target on board
     assert d_safe > 0
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not full_run(), reason="1,000 simulated seconds; set ASVTWIN_FULL=1")
+def test_the_benchmark_scene_in_dense_traffic_keeps_off_the_shore(bench):
+    """The first 1,000 s of the hour-long benchmark run: for minutes no plan is
+    certified (each track's circle grows to ~570 m over the 209 s horizon), and the
+    fallback candidates used to drive the own ship onto the shore south of its start
+    (3 groundings, 286 m inland by t = 1,000 s). The coast comes first now."""
+    from asvtwin.twin import Twin
+
+    base = default_scenario()
+    targets = list(base.targets) + bench.extra_targets(base, 50, 7)
+    sc = base.model_copy(update={"targets": targets, "duration_s": 1000.0})
+    sc = type(base).model_validate(sc.model_dump(mode="json"))
+    twin = Twin(sc)
+    s = twin.run(1000.0)
+    assert s.groundings == 0 and s.collisions == 0, s.text()
+    assert s.min_distance_land_m > twin.filter.psf.d_safe_m, s.text()
+    assert min(s.min_distance_targets_m.values()) > twin.filter.psf.d_safe_m, s.text()
