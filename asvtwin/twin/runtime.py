@@ -172,12 +172,16 @@ def warm_perception(scene: Scene, config: Any, lidar: Lidar, start_ned: _F8,
                 pos = q
                 break
         own = np.array([p0[0], p0[1], 0.0, 0.0, 0.0, 0.0])
+        # a 40 m vessel at 2 m/s for a full-scale LiDAR (500 m), a tenth of the range at
+        # model scale (30 m: a 3 m vessel at 0.5 m/s), Froude-scaled speed
+        length = min(40.0, 0.1 * lidar.config.max_range_m)
+        speed = 2.0 * math.sqrt(length / 40.0)
         perc = Perception(scene, config)
         for k in range(12):
             t = (k + 1) * dt_s
-            tgt = np.array([[pos[0] + 2.0 * t, pos[1], 0.0, 2.0, 0.0, 0.0]])
-            scan = lidar.scan(own, tgt, np.array([40.0]), np.array([8.0]), scene.land, rng,
-                              t_s=t)
+            tgt = np.array([[pos[0] + speed * t, pos[1], 0.0, speed, 0.0, 0.0]])
+            scan = lidar.scan(own, tgt, np.array([length]), np.array([length / 5.0]),
+                              scene.land, rng, t_s=t)
             tracks = perc.step(t, scan, ())
             assemble.ellipses_part(perc.ellipses())
             assemble.tracks_part(tracks, t, own, np.linspace(0.0, 60.0, 7), config.q)
