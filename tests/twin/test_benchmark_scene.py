@@ -42,15 +42,21 @@ def test_extra_targets_start_clear_of_the_own_ship_each_other_and_land(bench):
     assert [t.model_dump() for t in again] == [t.model_dump() for t in extra]
 
 
-def test_a_short_run_of_the_benchmark_scene_is_safe(bench):
+def _run_scene(bench, duration_s: float):
+    """The benchmark scene (default scenario + 50 extra targets, seed 7) run headless for
+    ``duration_s``: (twin, summary)."""
     from asvtwin.twin import Twin
 
     base = default_scenario()
     targets = list(base.targets) + bench.extra_targets(base, 50, 7)
-    sc = base.model_copy(update={"targets": targets, "duration_s": 30.0})
+    sc = base.model_copy(update={"targets": targets, "duration_s": duration_s})
     sc = type(base).model_validate(sc.model_dump(mode="json"))
     twin = Twin(sc)
-    s = twin.run(30.0)
+    return twin, twin.run(duration_s)
+
+
+def test_a_short_run_of_the_benchmark_scene_is_safe(bench):
+    twin, s = _run_scene(bench, 30.0)
     assert s.collisions == 0 and s.groundings == 0, s.text()
     d_safe = twin.filter.psf.d_safe_m
     assert min(s.min_distance_targets_m.values()) > 1000.0 - 30.0 * 2 * 5.0
@@ -66,14 +72,7 @@ def test_the_benchmark_scene_in_dense_traffic_keeps_off_the_shore(bench):
     certified (each track's circle grows to ~570 m over the 209 s horizon), and the
     fallback candidates used to drive the own ship onto the shore south of its start
     (3 groundings, 286 m inland by t = 1,000 s). The coast comes first now."""
-    from asvtwin.twin import Twin
-
-    base = default_scenario()
-    targets = list(base.targets) + bench.extra_targets(base, 50, 7)
-    sc = base.model_copy(update={"targets": targets, "duration_s": 1000.0})
-    sc = type(base).model_validate(sc.model_dump(mode="json"))
-    twin = Twin(sc)
-    s = twin.run(1000.0)
+    twin, s = _run_scene(bench, 1000.0)
     assert s.groundings == 0 and s.collisions == 0, s.text()
     assert s.min_distance_land_m > twin.filter.psf.d_safe_m, s.text()
     assert min(s.min_distance_targets_m.values()) > twin.filter.psf.d_safe_m, s.text()
