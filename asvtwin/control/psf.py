@@ -165,6 +165,7 @@ class SafetyFilter:
         self._prefer_starboard = False  # COLREG expects starboard (per call)
         # the uncertified fallback manoeuvre applied at the last call (kind, detail)
         self._last_fallback: tuple[str, str] | None = None
+        self._token = object()  # this filter's claim on the shared solver (_own_backend)
 
     def _make_backend(self, cfg: PsfConfig) -> Backend:
         name = cfg.backend if cfg.backend != "auto" else available_backends()[0]
@@ -218,6 +219,23 @@ class SafetyFilter:
         X = np.empty((N + 1, 6))
         rollout(x0, U, d, self._coef, self.config.dt_s, self.spec.rk4_substeps, X)
         return X
+
+    def _own_backend(self) -> None:
+        """Reset the shared solver when another filter solved on it last (call under the
+        backend's lock).
+
+        The solver is shared per process (building one takes seconds), and acados carries
+        its multipliers and the QP's warm start from one solve to the next: without this
+        a filter's answers depended on what other filters had solved before it in the
+        process. The scenario library's harbour approach reached its goal run alone and
+        missed it after the other scenarios had run (2026-12-01). Each filter's first
+        solve, and its first after another filter's, now starts from the reset state."""
+        if getattr(self.backend, "_asvtwin_owner", None) is not self._token:
+            self.backend.reset()
+            try:
+                self.backend._asvtwin_owner = self._token  # type: ignore[attr-defined]
+            except AttributeError:  # a backend that takes no attributes: reset every call
+                pass
 
     def reset(self) -> None:
         """Forget the last plan and the solver's iterate (new episode)."""
@@ -356,6 +374,7 @@ class SafetyFilter:
                 self._slots.set_terminal(xg[-1, 3:])  # stage N as the guess ends
                 try:
                     with backend_lock(self.backend):  # shared per process: one at a time
+                        self._own_backend()
                         raw = self.backend.solve(x, uL, P, xg, ug)
                     U = np.clip(raw.u, self.u_lb, self.u_ub)
                     status, ok = raw.status, raw.success
