@@ -30,7 +30,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from asvtwin.checks import F8 as _F8
 from asvtwin.checks import check_vector
-from asvtwin.control.backends import Backend, available_backends, backend_lock, make_backend
+from asvtwin.control.backends import (
+    Backend,
+    available_backends,
+    backend_lock,
+    claim_backend,
+    make_backend,
+)
 from asvtwin.control.backends.ocp import OcpSpec
 from asvtwin.control.certification import TERM_TOL, Certifier
 from asvtwin.control.colreg import EncounterLimits, classify_encounters
@@ -222,20 +228,11 @@ class SafetyFilter:
 
     def _own_backend(self) -> None:
         """Reset the shared solver when another filter solved on it last (call under the
-        backend's lock).
-
-        The solver is shared per process (building one takes seconds), and acados carries
-        its multipliers and the QP's warm start from one solve to the next: without this
-        a filter's answers depended on what other filters had solved before it in the
-        process. The scenario library's harbour approach reached its goal run alone and
-        missed it after the other scenarios had run (2026-12-01). Each filter's first
-        solve, and its first after another filter's, now starts from the reset state."""
-        if getattr(self.backend, "_asvtwin_owner", None) is not self._token:
+        backend's lock; :func:`~asvtwin.control.backends.claim_backend`). Without it the
+        scenario library's harbour approach reached its goal run alone and missed it after
+        the ferry crossing had run in the same process (2026-12-01)."""
+        if claim_backend(self.backend, self._token):
             self.backend.reset()
-            try:
-                self.backend._asvtwin_owner = self._token  # type: ignore[attr-defined]
-            except AttributeError:  # a backend that takes no attributes: reset every call
-                pass
 
     def reset(self) -> None:
         """Forget the last plan and the solver's iterate (new episode)."""

@@ -22,6 +22,7 @@ __all__ = [
     "available_backends",
     "backend_lock",
     "cache_dir",
+    "claim_backend",
     "make_backend",
 ]
 
@@ -33,6 +34,7 @@ BACKENDS = ("acados", "casadi-ipopt", "casadi-fatrop")
 _BUILT: dict[tuple[str, str], Backend] = {}
 _LOCKS: dict[int, threading.Lock] = {}
 _LOCKS_GUARD = threading.Lock()
+_OWNERS: dict[int, object] = {}
 
 
 def backend_lock(backend: object) -> threading.Lock:
@@ -41,6 +43,20 @@ def backend_lock(backend: object) -> threading.Lock:
     not enter it together (acados' solver memory is not thread-safe)."""
     with _LOCKS_GUARD:
         return _LOCKS.setdefault(id(backend), threading.Lock())
+
+
+def claim_backend(backend: object, owner: object) -> bool:
+    """Record ``owner`` as the last user of the shared ``backend`` (call under its
+    :func:`backend_lock`); True when another owner (or none) used it last.
+
+    acados carries its multipliers and the QP's warm start from one solve to the next, so
+    a filter that takes over the shared solver resets it first: its answers must not
+    depend on what other filters solved before it in the process."""
+    key = id(backend)
+    if _OWNERS.get(key) is owner:
+        return False
+    _OWNERS[key] = owner
+    return True
 
 
 def available_backends() -> list[str]:
