@@ -72,23 +72,20 @@ def _add_information(Y, y, H, R, z, Ri, work):  # type: ignore[no-untyped-def]
                 Y[i, c] += hr * H[j, c]
 
 
-@njit(cache=True)
-def _product_row(x, P, zL, RL, hL, HL, zA, RA, hA, HA, k, xo, Po, Y, Pn, w4, y, RiL, wL, RiA, wA):  # type: ignore[no-untyped-def]
-    """The product of target ``k``'s prior and its measurements into ``xo[k]``, ``Po[k]``
-    (left alone when neither sensor measured it); the other arrays are scratch.
-    :func:`_product_kernel` and the tracker's fused kernel share it."""
-    if not (hL[k] or hA[k]):
-        return  # case: neither sensor -> N(x, P)
-    inv_into(P[k], Y, w4)  # prior information P^-1
+@njit(cache=True, inline="always")
+def _prior_information(x, P, k, Y, y, w4):  # type: ignore[no-untyped-def]
+    """Y = P_k^-1, y = Y x_k: target ``k``'s prior in information form."""
+    inv_into(P[k], Y, w4)
     for i in range(4):
         acc = 0.0
         for j in range(4):
             acc += Y[i, j] * x[k, j]
         y[i] = acc
-    if hL[k]:
-        _add_information(Y, y, HL, RL[k], zL[k], RiL, wL)
-    if hA[k]:
-        _add_information(Y, y, HA, RA[k], zA[k], RiA, wA)
+
+
+@njit(cache=True, inline="always")
+def _posterior(Y, y, Pn, w4, k, xo, Po):  # type: ignore[no-untyped-def]
+    """``Po[k]`` = (sym Y)^-1 symmetrised, ``xo[k]`` = Po[k] y: back from information form."""
     for i in range(4):
         for j in range(i + 1, 4):
             v = 0.5 * (Y[i, j] + Y[j, i])
@@ -102,6 +99,21 @@ def _product_row(x, P, zL, RL, hL, HL, zA, RA, hA, HA, k, xo, Po, Y, Pn, w4, y, 
             Po[k, i, j] = v
             acc += v * y[j]
         xo[k, i] = acc
+
+
+@njit(cache=True)
+def _product_row(x, P, zL, RL, hL, HL, zA, RA, hA, HA, k, xo, Po, Y, Pn, w4, y, RiL, wL, RiA, wA):  # type: ignore[no-untyped-def]
+    """The product of target ``k``'s prior and its measurements into ``xo[k]``, ``Po[k]``
+    (left alone when neither sensor measured it); the other arrays are scratch.
+    :func:`_product_kernel` and the tracker's fused kernel share it."""
+    if not (hL[k] or hA[k]):
+        return  # case: neither sensor -> N(x, P)
+    _prior_information(x, P, k, Y, y, w4)
+    if hL[k]:
+        _add_information(Y, y, HL, RL[k], zL[k], RiL, wL)
+    if hA[k]:
+        _add_information(Y, y, HA, RA[k], zA[k], RiA, wA)
+    _posterior(Y, y, Pn, w4, k, xo, Po)
 
 
 @njit(cache=True, inline="always")
@@ -123,29 +135,12 @@ def _product_row_h(x, P, zL, RL, hL, zA, RA, hA, k, xo, Po, Y, Pn, w4, y, RiL, w
     (:func:`_add_information_h`); the tracker's fused kernel uses it."""
     if not (hL[k] or hA[k]):
         return
-    inv_into(P[k], Y, w4)
-    for i in range(4):
-        acc = 0.0
-        for j in range(4):
-            acc += Y[i, j] * x[k, j]
-        y[i] = acc
+    _prior_information(x, P, k, Y, y, w4)
     if hL[k]:
         _add_information_h(Y, y, 2, RL[k], zL[k], RiL, wL)
     if hA[k]:
         _add_information_h(Y, y, 4, RA[k], zA[k], RiA, wA)
-    for i in range(4):
-        for j in range(i + 1, 4):
-            v = 0.5 * (Y[i, j] + Y[j, i])
-            Y[i, j] = v
-            Y[j, i] = v
-    inv_into(Y, Pn, w4)
-    for i in range(4):
-        acc = 0.0
-        for j in range(4):
-            v = 0.5 * (Pn[i, j] + Pn[j, i])
-            Po[k, i, j] = v
-            acc += v * y[j]
-        xo[k, i] = acc
+    _posterior(Y, y, Pn, w4, k, xo, Po)
 
 
 @njit(cache=True)

@@ -108,6 +108,30 @@ def _predict_in_place(x, P, h, qk):  # type: ignore[no-untyped-def]
                 P[k, i, j] = Ps[0, i, j]
 
 
+@njit(cache=True, inline="always")
+def _joseph(A, P, k, R, m, K, Po, o, B):  # type: ignore[no-untyped-def]
+    """``Po[o]`` = A P_k Aᵀ + K[o] R_k K[o]ᵀ (Joseph form, upper triangle mirrored), ``A``
+    = I − K H given; ``B`` (4, 4) scratch. Shared by the generic and the H-specialised row."""
+    for i in range(4):  # B = A P
+        for j in range(4):
+            acc = 0.0
+            for l in range(4):
+                acc += A[i, l] * P[k, l, j]
+            B[i, j] = acc
+    for i in range(4):
+        for j in range(i, 4):
+            acc = 0.0
+            for l in range(4):
+                acc += B[i, l] * A[j, l]
+            for a in range(m):
+                kr = 0.0
+                for b in range(m):
+                    kr += R[k, a, b] * K[o, j, b]
+                acc += K[o, i, a] * kr
+            Po[o, i, j] = acc
+            Po[o, j, i] = acc
+
+
 @njit(cache=True)
 def _update_row(x, P, z, R, H, k, xo, Po, Ko, So, yo, o, PHt, Si, work, A, B):  # type: ignore[no-untyped-def]
     """Joseph-form update of target ``k`` of ``x``/``P``/``z``/``R`` into row ``o`` of
@@ -155,24 +179,7 @@ def _update_row(x, P, z, R, H, k, xo, Po, Ko, So, yo, o, PHt, Si, work, A, B):  
             for l in range(m):
                 acc -= Ko[o, i, l] * H[l, j]
             A[i, j] = acc
-    for i in range(4):  # B = A P
-        for j in range(4):
-            acc = 0.0
-            for l in range(4):
-                acc += A[i, l] * P[k, l, j]
-            B[i, j] = acc
-    for i in range(4):
-        for j in range(i, 4):
-            acc = 0.0
-            for l in range(4):
-                acc += B[i, l] * A[j, l]
-            for a in range(m):
-                kr = 0.0
-                for b in range(m):
-                    kr += R[k, a, b] * Ko[o, j, b]
-                acc += Ko[o, i, a] * kr
-            Po[o, i, j] = acc
-            Po[o, j, i] = acc
+    _joseph(A, P, k, R, m, Ko, Po, o, B)
     acc = 0.0
     for i in range(m):
         for j in range(m):
@@ -230,24 +237,7 @@ def _update_row_h(x, P, z, R, m, k, xo, Po, K, S, Si, work, A, B):  # type: igno
             if j < m:
                 acc -= K[0, i, j]
             A[i, j] = acc
-    for i in range(4):  # B = A P
-        for j in range(4):
-            acc = 0.0
-            for l in range(4):
-                acc += A[i, l] * P[k, l, j]
-            B[i, j] = acc
-    for i in range(4):
-        for j in range(i, 4):
-            acc = 0.0
-            for l in range(4):
-                acc += B[i, l] * A[j, l]
-            for a in range(m):
-                kr = 0.0
-                for b in range(m):
-                    kr += R[k, a, b] * K[0, j, b]
-                acc += K[0, i, a] * kr
-            Po[0, i, j] = acc
-            Po[0, j, i] = acc
+    _joseph(A, P, k, R, m, K, Po, 0, B)
     yy = (y0, y1, y2, y3)
     acc = 0.0
     for i in range(m):
