@@ -209,13 +209,6 @@ def _hull_box_one(points, s, n, o0, o1, heading_i, heading_std_i, shadow, si, pr
     # line of sight to the centroid, range, ray spacing
     r, r_far, l0, l1, amin, amax = sg[2], sg[3], sg[4], sg[5], sg[6], sg[7]
     ray = prm[14]  # the scan's ray spacing (0: unknown)
-    amin, amax = 0.0, 0.0
-    if n >= 2:  # bearings of the extreme returns about the line of sight to the centroid
-        amin, amax = np.inf, -np.inf
-        for j in range(n):
-            a = np.arctan2(-(points[s + j, 0] - o0) * l1 + (points[s + j, 1] - o1) * l0,
-                           (points[s + j, 0] - o0) * l0 + (points[s + j, 1] - o1) * l1)
-            amin, amax = min(amin, a), max(amax, a)
     if step > 0.0 or n < 2:
         dphi = step if step > 0.0 else (ray if ray > 0.0 else 0.01)
     else:  # mean angular spacing of the returns (dropouts make it conservative)
