@@ -19,9 +19,11 @@ pytestmark = pytest.mark.skipif("acados" not in available_backends(),
                                 reason="the shared-state hazard is acados'")
 
 
-def _episode(psf: SafetyFilter, east: float, scale: float, n: int = 40) -> np.ndarray:
+def _episode(psf: SafetyFilter, east: float, scale: float, n: int = 40,
+             log: list[str] | None = None) -> np.ndarray:
     """``n`` calls at 60 % ahead with a vessel crossing from port ``east`` (model-scale
-    metres, Froude-scaled by ``scale``); the applied inputs (n, 3)."""
+    metres, Froude-scaled by ``scale``); the applied inputs (n, 3). ``log`` collects each
+    call's status and reason."""
     N, dt = psf.config.N, psf.config.dt_s
     x = np.array([0.0, 0.0, 0.0, 0.3 * scale ** 0.5, 0.0, 0.0])
     out = []
@@ -32,6 +34,8 @@ def _episode(psf: SafetyFilter, east: float, scale: float, n: int = 40) -> np.nd
         vessel = MovingObstacles(positions=pos[None], radii=np.array([0.5 * scale]))
         res = psf.filter(x, psf.u_ub * np.array([0.6, 0.0, 0.0]), [vessel], t_s=dt * k)
         out.append(res.u0)
+        if log is not None:
+            log.append(f"{k}: u0 {np.round(res.u0, 1).tolist()} {res.status}; {res.fallback}; {res.reason}")
         x = psf.rollout(x, np.tile(res.u0, (N, 1)))[1]
     return np.asarray(out)
 
@@ -41,10 +45,11 @@ def test_a_filters_answers_do_not_depend_on_other_filters_on_the_shared_solver(h
     p = hull()
     cfg = PsfConfig(backend="acados")
     first_filter = SafetyFilter(p, config=cfg)
-    first = _episode(first_filter, 0.0, scale)
+    log: list[str] = []
+    first = _episode(first_filter, 0.0, scale, log=log)
     other = SafetyFilter(p, config=cfg)
     assert other.backend is first_filter.backend  # one solver per process
     _episode(other, 1.5, scale)  # another filter's episode on the same solver
     again = _episode(SafetyFilter(p, config=cfg), 0.0, scale)
-    assert np.abs(first[:, 2]).max() > 0  # the filter steered: the solver was used
+    assert np.abs(first[:, 2]).max() > 0, "\n".join(log)  # it steered: the solver was used
     np.testing.assert_array_equal(again, first)

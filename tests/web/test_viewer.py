@@ -284,10 +284,19 @@ def test_replay_has_a_timeline_that_seeks(replay):
     page.click("#btn-play", **F)  # pause the playback
     page.wait_for_function("asvtwinViewer.lastControl && asvtwinViewer.lastControl.status == 200",
                            timeout=WAIT_MS)
-    page.evaluate("""() => { const s = document.getElementById('seek'); s.value = '2.5';
-                             s.dispatchEvent(new Event('change')); }""")
-    page.wait_for_function("Math.abs(asvtwinViewer.latest.t_s - 2.5) < 0.11", timeout=WAIT_MS)
-    assert srv.feed.playback_time_s() == pytest.approx(2.5, abs=1e-6)
+    assert page.evaluate("asvtwinViewer.lastControl.action") == "pause"
+    paused_at = srv.feed.playback_time_s()
+    # seek well away from where the pause stopped the playback: on a slow machine the page
+    # opens ~2.5 s into the recording, and a target near that would be "reached" before the
+    # seek was applied
+    target = 7.5 if paused_at < 5.0 else 2.5
+    page.evaluate("""(t) => { const s = document.getElementById('seek'); s.value = String(t);
+                              s.dispatchEvent(new Event('change')); }""", target)
+    page.wait_for_function("asvtwinViewer.lastControl.action == 'seek' "
+                           "&& asvtwinViewer.lastControl.status == 200", timeout=WAIT_MS)
+    page.wait_for_function(f"Math.abs(asvtwinViewer.latest.t_s - {target}) < 0.11",
+                           timeout=WAIT_MS)
+    assert srv.feed.playback_time_s() == pytest.approx(target, abs=1e-6)  # still paused
     save(page.locator("#timeline").screenshot(), "synthetic-viewer-timeline.png")
     assert not foreign
 
