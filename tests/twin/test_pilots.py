@@ -17,10 +17,9 @@ from asvtwin.scenarios import TargetSpec
 from asvtwin.twin.pilots import TargetPilots
 from asvtwin.twin.world import target_params
 
-
 #: the courses agree to a picoradian (the ulp-level differences of sin/cos/atan pass
 #: through the line-of-sight arithmetic: up to 4e-15 rad seen)
-ULP_RAD = 1e-12
+COURSE_TOL_RAD = 1e-12
 
 
 def _fleet(rng: np.random.Generator, n: int) -> tuple[TargetPilots, np.ndarray]:
@@ -52,10 +51,10 @@ def test_compiled_route_course_equals_the_numpy_reference() -> None:
         k0 = p.k.copy()
         a, ha = p._route_course(x)
         b, hb = q._route_course_numpy(x)
-        np.testing.assert_allclose(a, b, rtol=0, atol=ULP_RAD)
+        np.testing.assert_allclose(a, b, rtol=0, atol=COURSE_TOL_RAD)
         np.testing.assert_array_equal(ha, hb)
         np.testing.assert_array_equal(p.k, q.k)
-        np.testing.assert_allclose(p.course, q.course, rtol=0, atol=ULP_RAD)
+        np.testing.assert_allclose(p.course, q.course, rtol=0, atol=COURSE_TOL_RAD)
         switched += int((p.k != k0).sum())
         ended += int((~ha & (p.n_wp >= 2)).sum())
         # sail along the commanded course, with some scatter
