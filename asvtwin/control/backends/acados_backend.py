@@ -26,7 +26,10 @@ import io
 import json
 import logging
 import os
+import sys
+import threading
 import time
+from collections.abc import Iterator
 from typing import Any
 
 import casadi as ca
@@ -52,6 +55,62 @@ log = logging.getLogger(__name__)
 #: Finite upper bound of the one-sided obstacle constraints [m] (with ±1e9 as "no bound" every QP hit
 #: its iteration limit while SQP-RTI still reported success).
 _H_UPPER = 1e5
+
+# acados' SQP-RTI prints "SQP_RTI: QP solver returned error status …" with C printf on every
+# failed QP (compiled into libacados unless built with ACADOS_SILENT; print_level does not
+# reach it): thousands of lines an hour in a twin among 50 vessels. The failure is not lost:
+# the QP status is in every result (RawSolution.status, FilterResult.status, the twin's
+# snapshot and summary). The C stdout (fd 1) goes to /dev/null during solves only.
+_SILENCE_LOCK = threading.Lock()
+_SILENCE_DEPTH = 0
+_SILENCE_SAVED: int | None = None
+_LIBC: Any = None
+
+
+def _flush_c_stdout() -> None:
+    global _LIBC
+    if _LIBC is None:
+        try:
+            _LIBC = ctypes.CDLL(None)
+        except OSError:  # pragma: no cover - no C library to load
+            _LIBC = False
+    if _LIBC:
+        _LIBC.fflush(None)
+
+
+@contextlib.contextmanager
+def _c_stdout_silenced() -> Iterator[None]:
+    """fd 1 to /dev/null for the block (nested and threaded use share one redirect, kept
+    while any block is open). Python's own buffer is flushed before, and the C library's
+    buffer (acados' lines when stdout is a pipe) into /dev/null before fd 1 comes back.
+    Where fd 1 cannot be duplicated (closed), the block runs as it is."""
+    global _SILENCE_DEPTH, _SILENCE_SAVED
+    with _SILENCE_LOCK:
+        if _SILENCE_DEPTH == 0:
+            try:
+                sys.stdout.flush()
+            except (AttributeError, ValueError, OSError):
+                pass
+            try:
+                saved = os.dup(1)
+            except OSError:
+                saved = None
+            if saved is not None:
+                null = os.open(os.devnull, os.O_WRONLY)
+                os.dup2(null, 1)
+                os.close(null)
+            _SILENCE_SAVED = saved
+        _SILENCE_DEPTH += 1
+    try:
+        yield
+    finally:
+        with _SILENCE_LOCK:
+            _SILENCE_DEPTH -= 1
+            if _SILENCE_DEPTH == 0 and _SILENCE_SAVED is not None:
+                _flush_c_stdout()
+                os.dup2(_SILENCE_SAVED, 1)
+                os.close(_SILENCE_SAVED)
+                _SILENCE_SAVED = None
 
 
 def _setup_environment() -> Any:
@@ -276,17 +335,18 @@ class AcadosBackend:
         t0 = time.perf_counter()
         status, qp_status, iters = 0, 0, 0
         prev_u = self._Ug.copy()
-        for _ in range(self.rti_steps):
-            status = io.solve()
-            iters += 1
-            qp_status = self._qp_status() if status == 0 else status
-            if status != 0 or qp_status != 0 or self.rti_steps == 1:
-                break
-            U = io.read_u().copy()  # scaled: the step is a fraction of the actuator bound
-            step = float(np.max(np.abs(U - prev_u)))
-            prev_u = U
-            if step < self.step_tol:
-                break
+        with _c_stdout_silenced():
+            for _ in range(self.rti_steps):
+                status = io.solve()
+                iters += 1
+                qp_status = self._qp_status() if status == 0 else status
+                if status != 0 or qp_status != 0 or self.rti_steps == 1:
+                    break
+                U = io.read_u().copy()  # scaled: a fraction of the actuator bound
+                step = float(np.max(np.abs(U - prev_u)))
+                prev_u = U
+                if step < self.step_tol:
+                    break
         dt = time.perf_counter() - t0
         X, U = io.read()
         U = U * self._S
