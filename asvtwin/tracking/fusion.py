@@ -44,7 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
 from asvtwin.tracking.kalman import H_FULL, H_POSITION
-from asvtwin.tracking.smallmat import inv_into
+from asvtwin.tracking.smallmat import inv_into, inv_into_m
 
 __all__ = ["FUSION_METHODS", "fuse_covariance_intersection", "fuse_gain_weighted", "fuse_product"]
 
@@ -75,7 +75,7 @@ def _add_information(Y, y, H, R, z, Ri, work):  # type: ignore[no-untyped-def]
 @njit(cache=True, inline="always")
 def _prior_information(x, P, k, Y, y, w4):  # type: ignore[no-untyped-def]
     """Y = P_k^-1, y = Y x_k: target ``k``'s prior in information form."""
-    inv_into(P[k], Y, w4)
+    inv_into_m(P[k], Y, w4, 4)
     for i in range(4):
         acc = 0.0
         for j in range(4):
@@ -91,7 +91,7 @@ def _posterior(Y, y, Pn, w4, k, xo, Po):  # type: ignore[no-untyped-def]
             v = 0.5 * (Y[i, j] + Y[j, i])
             Y[i, j] = v
             Y[j, i] = v
-    inv_into(Y, Pn, w4)
+    inv_into_m(Y, Pn, w4, 4)
     for i in range(4):
         acc = 0.0
         for j in range(4):
@@ -121,7 +121,7 @@ def _add_information_h(Y, y, m, R, z, Ri, work):  # type: ignore[no-untyped-def]
     """:func:`_add_information` for ``H = [I_m 0]``: the same sums without the products by
     ``H``'s zeros and ones (equal bit for bit for finite inputs; ``0.0 + v`` as the
     generic sum starts)."""
-    inv_into(R, Ri, work)
+    inv_into_m(R, Ri, work, m)
     for i in range(m):
         for j in range(m):
             hr = 0.0 + Ri[i, j]

@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike
 
 from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ParameterError, StateError
-from asvtwin.tracking.smallmat import inv_into
+from asvtwin.tracking.smallmat import inv_into, inv_into_m
 
 __all__ = [
     "H_FULL",
@@ -217,7 +217,7 @@ def _update_row_h(x, P, z, R, m, k, xo, Po, K, S, Si, work, A, B):  # type: igno
                 acc += 0.5 * P[k, j, i]
                 acc += 0.5 * P[k, i, j]
             S[i, j] = acc
-    inv_into(S, Si, work)
+    inv_into_m(S, Si, work, m)
     for i in range(4):  # K = P Hᵀ S⁻¹
         for j in range(m):
             acc = 0.0

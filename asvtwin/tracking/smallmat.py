@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["chol3_into", "eig_sym3_into", "inv3_into", "inv_into", "inv_lower3_into", "inv_small", "mm", "mm_into",
-           "mv", "top_eig_sym3_into"]
+__all__ = ["chol3_into", "eig_sym3_into", "inv3_into", "inv_into", "inv_into_m", "inv_lower3_into",
+           "inv_small", "mm", "mm_into", "mv", "top_eig_sym3_into"]
 
 
 @njit(cache=True)
@@ -29,10 +29,12 @@ def inv_small(A):  # type: ignore[no-untyped-def]
     return Inv
 
 
-@njit(cache=True)
-def inv_into(A, Inv, M):  # type: ignore[no-untyped-def]
-    """:func:`inv_small` writing into ``Inv``, with ``M`` as scratch (same shape)."""
-    m = A.shape[0]
+@njit(cache=True, inline="always")
+def inv_into_m(A, Inv, M, m):  # type: ignore[no-untyped-def]
+    """:func:`inv_into` of an ``m``×``m`` matrix, inlined (numba IR) into its caller: with
+    ``m`` a constant there the loops unroll (the Kalman and fusion rows: ~1.4x faster).
+    The same operations in the same order, so the result equals :func:`inv_into`'s bit
+    for bit."""
     for i in range(m):
         for j in range(m):
             M[i, j] = A[i, j]
@@ -57,6 +59,12 @@ def inv_into(A, Inv, M):  # type: ignore[no-untyped-def]
                     for k in range(m):
                         M[r, k] -= f * M[c, k]
                         Inv[r, k] -= f * Inv[c, k]
+
+
+@njit(cache=True)
+def inv_into(A, Inv, M):  # type: ignore[no-untyped-def]
+    """:func:`inv_small` writing into ``Inv``, with ``M`` as scratch (same shape)."""
+    inv_into_m(A, Inv, M, A.shape[0])
 
 
 @njit(cache=True)
