@@ -97,28 +97,44 @@ def _angle_table():  # type: ignore[no-untyped-def]
 _ANGLES = _angle_table()
 
 
+_COS = np.ascontiguousarray(_ANGLES[:, 1])  # the table's columns, contiguous (vector loads)
+_SIN = np.ascontiguousarray(_ANGLES[:, 2])
+
+
 @njit(cache=True)
-def _box_areas(pts, s, n, r0, na, out):  # type: ignore[no-untyped-def]
+def _box_areas(pts, s, n, r0, na, out, ext):  # type: ignore[no-untyped-def]
     """:func:`_box_area` of returns ``s..s+n-1`` for the ``na`` angles of rows
     ``r0..r0+na-1`` of :data:`_ANGLES` into ``out[:na]``: the same projections, extremes
-    (the first return starts them, as in :func:`_extents`) and area, value for value,
-    without the per-return branch on the first one and the call per angle (~20 % of the
-    orientation search)."""
+    (the first return starts them, as in :func:`_extents`) and area, value for value.
+    The angles are the inner loop, each with its running extremes in ``ext[:, a]``
+    (``ext`` (4, >= na) scratch): independent per angle, so the loop runs in SIMD lanes
+    (~1.5x faster than a pass over the returns per angle)."""
+    x, y = pts[s, 0], pts[s, 1]
     for a in range(na):
-        c, sn = _ANGLES[r0 + a, 1], _ANGLES[r0 + a, 2]
-        x, y = pts[s, 0], pts[s, 1]
-        s0 = x * c + y * sn
-        t0 = -x * sn + y * c
-        s1, t1 = s0, t0
-        for j in range(s + 1, s + n):
-            x, y = pts[j, 0], pts[j, 1]
+        c, sn = _COS[r0 + a], _SIN[r0 + a]
+        p = x * c + y * sn
+        q = -x * sn + y * c
+        ext[0, a] = p
+        ext[1, a] = p
+        ext[2, a] = q
+        ext[3, a] = q
+    for j in range(s + 1, s + n):
+        x, y = pts[j, 0], pts[j, 1]
+        for a in range(na):
+            c, sn = _COS[r0 + a], _SIN[r0 + a]
             p = x * c + y * sn
             q = -x * sn + y * c
-            # (selects, not min/max: the same values, ~10 % faster in numba here)
-            s0 = p if p < s0 else s0  # noqa: FURB136
-            s1 = p if p > s1 else s1  # noqa: FURB136
-            t0 = q if q < t0 else t0  # noqa: FURB136
-            t1 = q if q > t1 else t1  # noqa: FURB136
+            # (selects, not min/max: the same values, and they vectorise)
+            v = ext[0, a]
+            ext[0, a] = p if p < v else v  # noqa: FURB136
+            v = ext[1, a]
+            ext[1, a] = p if p > v else v  # noqa: FURB136
+            v = ext[2, a]
+            ext[2, a] = q if q < v else v  # noqa: FURB136
+            v = ext[3, a]
+            ext[3, a] = q if q > v else v  # noqa: FURB136
+    for a in range(na):
+        s0, s1, t0, t1 = ext[0, a], ext[1, a], ext[2, a], ext[3, a]
         out[a] = (s1 - s0) * (t1 - t0) + 1e-6 * ((s1 - s0) + (t1 - t0))
 
 
@@ -128,13 +144,14 @@ def _box_orientation(pts, s, n):  # type: ignore[no-untyped-def]
     90°, then 1° around the best (angles from :data:`_ANGLES`; the areas of each stage in
     one pass over the returns, :func:`_box_areas`)."""
     areas = np.empty(_COARSE)
+    ext = np.empty((4, _COARSE))
     best, th, cb = np.inf, 0.0, 0
-    _box_areas(pts, s, n, 0, _COARSE, areas)
+    _box_areas(pts, s, n, 0, _COARSE, areas, ext)
     for i in range(_COARSE):
         v = areas[i]
         if v < best:
             best, th, cb = v, _ANGLES[i, 0], i
-    _box_areas(pts, s, n, _COARSE + cb * _FINE, _FINE, areas)
+    _box_areas(pts, s, n, _COARSE + cb * _FINE, _FINE, areas, ext)
     for i in range(_FINE):
         v = areas[i]
         if v < best:
