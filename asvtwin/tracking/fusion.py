@@ -132,9 +132,9 @@ def _add_information_h(Y, y, m, R, z, Ri, work):  # type: ignore[no-untyped-def]
 @njit(cache=True, inline="always")
 def _product_row_h(x, P, zL, RL, hL, zA, RA, hA, k, xo, Po, Y, Pn, w4, y, RiL, wL, RiA, wA):  # type: ignore[no-untyped-def]
     """:func:`_product_row` with ``H_L`` = :data:`H_POSITION`, ``H_A`` = :data:`H_FULL`
-    (:func:`_add_information_h`); the tracker's fused kernel uses it."""
-    if not (hL[k] or hA[k]):
-        return
+    (:func:`_add_information_h`) of a row at least one sensor measured: the caller skips
+    the others (the tracker's fused kernel, its user, does; an early return here kept
+    ~15 reference counts per row that numba could not prune)."""
     _prior_information(x, P, k, Y, y, w4)
     if hL[k]:
         _add_information_h(Y, y, 2, RL[k], zL[k], RiL, wL)
