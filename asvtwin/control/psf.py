@@ -363,9 +363,8 @@ class SafetyFilter:
         # This call's solve is warm-started from that call's plan (from its best
         # candidate when the solver's own plan cut into d_safe): it is that call's retry
         prev_fb = self._fallback_t
-        streak = (not cfg.retry_in_streak and prev_fb is not None
-                  and 0.0 < t_s - prev_fb < N * dt)
-        retries = 0 if streak else cfg.uncertified_retries
+        in_streak = prev_fb is not None and 0.0 < t_s - prev_fb < N * dt
+        retries = 0 if (in_streak and not cfg.retry_in_streak) else cfg.uncertified_retries
         for rnd in range(1 + retries):
             for _ in range(attempts):
                 self._slots.set_terminal(xg[-1, 3:])  # stage N as the guess ends
@@ -418,6 +417,8 @@ class SafetyFilter:
                 # re-initialise it from the best candidate; otherwise let SQP continue
                 xg, ug = best[0], best[1]
                 self._last = (t_s, xg, ug)
+            if not ok and in_streak and not cfg.retry_failed_solves:
+                break  # a QP that did not converge, within a streak: a retry rarely certifies
             attempts = 1
         assert best is not None
         X, U, margins, term, cert, why, _ = best

@@ -76,6 +76,15 @@ class PsfConfig:
         unchanged; at full scale the retry's extra SQP step is what ends the coast
         streaks (fallbacks 0.95 → 3.6 % of calls without it): on by default, the RL
         world turns it off (docs/psf.md, speed).
+    retry_failed_solves : bool
+        Within a fallback streak (the previous call fell back less than a horizon N·Δt
+        earlier), retry also when the solve itself failed (the QP stopped at its
+        iteration limit or failed), not only when its converged plan was not certified.
+        In the twin among 50 extra vessels, retries after a failed solve certified a
+        plan in 1 of 911 calls and were a third of all solves, the most expensive ones;
+        outside a streak (an isolated failure) the retry is kept, since at full scale
+        it is what avoids a fallback in the two-vessel encounters (docs/psf.md, speed):
+        off by default.
     hpipm_mode : str
         The acados backend's HPIPM mode (``"BALANCE"``, ``"SPEED"``, ``"SPEED_ABS"``,
         ``"ROBUST"``); other backends ignore it. ``"SPEED"``: ~30 % less CPU per solve,
@@ -116,6 +125,7 @@ class PsfConfig:
     cold_start_solves: int = 5
     uncertified_retries: int = 1
     retry_in_streak: bool = True
+    retry_failed_solves: bool = False
     hpipm_mode: str = "BALANCE"
     colreg: bool = True
     comfort_pass_through: bool = False

@@ -67,6 +67,9 @@ class _Failing:
     def __init__(self, inner):
         self.inner, self.name, self.spec = inner, inner.name, inner.spec
 
+    def reset(self):
+        """Nothing to reset (the filter resets a backend it takes over)."""
+
     def solve(self, x0, u_L, P, xg, ug):
         N = self.spec.N
         return RawSolution(x=np.tile(x0, (N + 1, 1)), u=np.tile(u_L, (N, 1)), max_slack=0.0,
@@ -99,6 +102,35 @@ def test_forced_failure_uses_a_checked_candidate_never_u_L(params, default_backe
         closest = min(closest, float(np.hypot(x[0] - 14.0, x[1])) - 3.0)
     assert fallbacks >= 1
     assert closest >= psf.d_safe_m - psf.certify_tol_m
+
+
+def test_a_failed_solve_in_a_fallback_streak_is_not_retried(params, default_backend):
+    """Every solve fails, a rock 6 m ahead: the first call (cold start) retries from the
+    best candidate; the calls of the fallback streak that follows make one solve each (in
+    the twin among 50 vessels, retries after a failed solve certified 1 plan in 911
+    calls). ``retry_failed_solves=True`` keeps the earlier behaviour: two each."""
+
+    def solves_per_call(retry: bool) -> list[int]:
+        psf = SafetyFilter(params, config=PsfConfig(backend=default_backend,
+                                                    retry_failed_solves=retry))
+        failing = _Failing(psf.backend)
+        count: list[int] = []
+        inner_solve = failing.solve
+        failing.solve = lambda *a: count.append(1) or inner_solve(*a)
+        psf.backend = failing
+        x = np.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.0])
+        out = []
+        for k in range(8):
+            n0 = len(count)
+            res = psf.filter(x, FULL_AHEAD, CircleObstacles([[6.0, 0.0]], [2.0]), t_s=0.5 * k)
+            assert res.fallback != "none" and not np.allclose(res.u0, FULL_AHEAD)
+            out.append(len(count) - n0)
+            x = psf.rollout(x, res.u_pred)[1]
+        return out
+
+    cold = PsfConfig().cold_start_solves
+    assert solves_per_call(False) == [cold + 1] + [1] * 7
+    assert solves_per_call(True) == [cold + 1] + [2] * 7
 
 
 def test_failure_without_any_plan_applies_the_best_candidate(params, default_backend):
