@@ -396,10 +396,11 @@ def _end_shadows(g, off, ranges, hit, step, full, tol):  # type: ignore[no-untyp
             j = i0
             while cnt < _MAX_SHADOW_RAYS:
                 j += d
-                if not full and (j < 0 or j >= m):
-                    cnt = _MAX_SHADOW_RAYS  # the edge of the field of view
-                    break
-                j %= m
+                if j < 0 or j >= m:
+                    if not full:
+                        cnt = _MAX_SHADOW_RAYS  # the edge of the field of view
+                        break
+                    j = j + m if j < 0 else j - m  # j % m for a step of one (no division)
                 if hit[j] and ranges[j] < r0 - tol:
                     cnt += 1
                 elif not hit[j] and cnt == 0 and not skipped:

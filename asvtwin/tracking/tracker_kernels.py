@@ -282,13 +282,25 @@ def take_tied(ti, tj, ok, am_z, am_R, gotA, zA, RA, ais_rej):  # type: ignore[no
 
 @njit(cache=True)
 def coincident(x, P, mmsi, gamma):  # type: ignore[no-untyped-def]
-    """Pairs (i < j) whose position and velocity differences are within the χ² gate."""
+    """Pairs (i < j) whose position and velocity differences are within the χ² gate, in
+    the order of the double loop over ``i < j``. Two identified vessels (``mmsi >= 0``)
+    are never one: a tied ``i`` is tested only against the untied ``j > i`` (with most
+    tracks tied, the n²/2 pairs were nearly all skipped one by one)."""
     n = x.shape[0]
-    out_i, out_j = [], []
+    untied = np.empty(n, np.int64)
+    nu = 0
     for i in range(n):
-        for j in range(i + 1, n):
-            if mmsi[i] >= 0 and mmsi[j] >= 0:
-                continue  # two identified vessels are never one
+        if mmsi[i] < 0:
+            untied[nu] = i
+            nu += 1
+    out_i, out_j = [], []
+    u0 = 0  # the first untied row after i
+    for i in range(n):
+        while u0 < nu and untied[u0] <= i:
+            u0 += 1
+        tied = mmsi[i] >= 0
+        for q in range(nu - u0 if tied else n - i - 1):
+            j = untied[u0 + q] if tied else i + 1 + q
             ok = True
             for o in (0, 2):  # position block, then velocity block
                 a = P[i, o, o] + P[j, o, o]
