@@ -200,8 +200,13 @@ def _beam_gap(i0, i1, rmax, ranges, hit, m, full, max_empty):  # type: ignore[no
             d -= m
     step = 1 if d > 0 else -1
     empty = 0
-    for k in range(1, abs(d)):
-        j = (i0 + step * k) % m
+    j = i0  # (i0 + step k) % m, stepped without a division per ray
+    for _ in range(1, abs(d)):
+        j += step
+        if j < 0:
+            j += m
+        elif j >= m:
+            j -= m
         if not hit[j] or ranges[j] > rmax:
             empty += 1
             if empty > max_empty:
