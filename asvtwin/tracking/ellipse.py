@@ -41,9 +41,7 @@ from asvtwin.errors import ParameterError, StateError
 from asvtwin.tracking.smallmat import (
     eig_sym3_into,
     inv3_into,
-    inv_small,
     mm_into,
-    mv,
 )
 
 __all__ = [
@@ -214,6 +212,45 @@ def _hf_deflated(T, C1, v0, v1, v2):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
+def _solve_in_place(A, b):  # type: ignore[no-untyped-def]
+    """Solve A x = b (Gaussian elimination, partial pivoting), x into ``b``; A is destroyed.
+
+    False, and b undefined, when a pivot is at most ``_SINGULAR`` times A's largest entry:
+    a singular system answers "no solution" instead of dividing by zero.
+    """
+    m = A.shape[0]
+    scale = 0.0
+    for i in range(m):
+        for j in range(m):
+            scale = max(scale, abs(A[i, j]))
+    if not scale > 0.0:
+        return False
+    for c in range(m):
+        piv = c
+        for r in range(c + 1, m):
+            if abs(A[r, c]) > abs(A[piv, c]):
+                piv = r
+        if not abs(A[piv, c]) > _SINGULAR * scale:
+            return False
+        if piv != c:
+            for k in range(m):
+                A[c, k], A[piv, k] = A[piv, k], A[c, k]
+            b[c], b[piv] = b[piv], b[c]
+        for r in range(c + 1, m):
+            f = A[r, c] / A[c, c]
+            if f != 0.0:
+                for k in range(c, m):
+                    A[r, k] -= f * A[c, k]
+                b[r] -= f * b[c]
+    for c in range(m - 1, -1, -1):
+        acc = b[c]
+        for k in range(c + 1, m):
+            acc -= A[c, k] * b[k]
+        b[c] = acc / A[c, c]
+    return True
+
+
+@njit(cache=True)
 def _fit_one(p, method, C1, out, x, y, ang, ws, v3):  # type: ignore[no-untyped-def]
     """Fit one cluster; writes [status, n, cn, ce, a_major, b_minor, angle, coverage, cond, resid].
 
@@ -363,8 +400,12 @@ def _fit_one(p, method, C1, out, x, y, ang, ws, v3):  # type: ignore[no-untyped-
         N[:3, 3:] = S2[:, :2]
         N[3:, :3] = S2[:, :2].T
         N[3:, 3:] = S3[:2, :2]
-        rhs = np.array([m20, m11, m02, m10, m01])
-        w = mv(inv_small(N), rhs)
+        w = np.array([m20, m11, m02, m10, m01])
+        if not _solve_in_place(N, w):
+            # the points lie on a conic through their centroid (e.g. two lines crossing
+            # there), which f = -1 cannot express: no MLR ellipse
+            out[0] = 3
+            return
         a, b, c, d, e, f = w[0], w[1], w[2], w[3], w[4], -1.0
     det4 = 4.0 * a * c - b * b
     if not det4 > 0.0:  # 4ac - b^2 > 0: ellipse condition, eq. (shape_fitting_unequality)

@@ -18,7 +18,8 @@ from numba import njit
 # numba's on-disk cache keys a kernel on its own file only: lidar_model_kernel compiles
 # ellipse._fit_many into itself, so a change to ellipse.py must come with a change to this
 # file (or a cleared __pycache__), else the cached kernel keeps the old fit (the insertion
-# sorts of the fit, 2026-12-01, reached the tracker only through such a change).
+# sorts of the fit, 2026-12-01, reached the tracker only through such a change; so did
+# the MLR fit's singular normal equations answering "no_ellipse", not ZeroDivisionError).
 from asvtwin.tracking.ellipse import _fit_many
 
 __all__: list[str] = []  # internal kernels; the public API is asvtwin.tracking.measurement

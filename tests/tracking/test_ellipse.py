@@ -222,3 +222,21 @@ def test_degenerate_scatter_is_flagged_not_ok() -> None:
     base = np.array([[0.0, 0.0], [5.0, 1.0], [3.0, 4.0], [-1.0, 3.0]])
     clumps = np.repeat(base, 3, axis=0) + np.tile([[0.0, 0.0], [1e-12, 0.0], [0.0, 1e-12]], (4, 1))
     assert fit_ellipse(clumps).status == "too_few_points"  # 4 places, 12 "distinct" points
+
+
+def test_singular_mlr_normal_equations_answer_no_ellipse() -> None:
+    # MLR fixes f = -1, so it cannot express a conic through the points' centroid: two
+    # lines crossing there make its 5x5 normal equations singular. This raised
+    # ZeroDivisionError (and an LAPACK-free inverse of a singular matrix) before.
+    cross = np.array([[-2.0, 0.0], [2.0, 0.0], [0.0, 0.0], [1.0, 2.0], [1.0, -2.0], [1.0, 0.0]])
+    fit = fit_ellipse(cross, method="mlr")
+    assert fit.status == "no_ellipse" and not fit.ok and np.isnan(fit.centre).all()
+    assert fit_ellipse(cross).status in ("no_ellipse", "collinear", "ok")  # HF: data, not a raise
+    # the same degeneracy far from the origin, scattered by 1e-8 m: still flagged, no raise
+    rng = np.random.default_rng(3)
+    far = np.repeat(cross, 3, axis=0) + 1e5 + rng.normal(0.0, 1e-8, (18, 2))
+    assert fit_ellipse(far, method="mlr").status in ("no_ellipse", "collinear", "too_few_points")
+    # the batched kernel the tracker uses gives the same answer for it, among good clusters
+    good = _ellipse(rng, 30, 6.0, 2.0, 0.4, (50.0, -20.0), noise=0.05)
+    fits = fit_ellipses(np.vstack([good, cross, good]), np.array([0, 30, 36, 66]), method="mlr")
+    assert [fits[i].status for i in range(3)] == ["ok", "no_ellipse", "ok"]
