@@ -1,6 +1,8 @@
 """Benchmark of the whole twin, headless; prints one JSON object.
 
-The embedded default scenario (Trondheim Fjord, full-scale own ship under ``los_psf``,
+The embedded default scenario (Trondheim Fjord, full-scale own ship under ``los_psf``;
+``--controller rl_psf`` runs the trained policy through the filter instead, and the JSON
+says which ran;
 synthetic AIS through the NMEA decoder, weather fixture) plus ``--extra-targets`` (50)
 vessels placed at random on open water within 3 km of the own ship (seeded; a mix of
 class A, class B and no transponder; constant velocity or a two-leg route), every
@@ -114,6 +116,9 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
     ap.add_argument("--warmup", type=float, default=20.0, help="simulated s not measured")
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--quick", action="store_true", help="a short check: a 300 s run")
+    ap.add_argument("--controller", default=None,
+                    choices=("manual", "los", "los_psf", "rl", "rl_psf"),
+                    help="the own ship's controller (default: the default scenario's)")
     args = ap.parse_args(argv)
     if args.quick:
         args.duration = 300.0
@@ -124,6 +129,9 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
     from asvtwin.twin import Twin
 
     base = default_scenario()
+    if args.controller is not None:
+        base = base.model_copy(update={"own_ship": base.own_ship.model_copy(
+            update={"controller": args.controller})})
     targets = list(base.targets) + extra_targets(base, args.extra_targets, args.seed)
     total = args.warmup + args.duration
     scenario = base.model_copy(update={"targets": targets, "duration_s": max(total, 1.0)})
@@ -180,6 +188,7 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
         "realtime_factor_cpu": round(sim_s / cpu, 2),
         "realtime_factor_windows": [round(w, 2) for w in windows],
         "targets": len(targets),
+        "controller": scenario.own_ship.controller,
         "sim_hz": scenario.rates.sim_hz,
         "tick_ms": round(tick_ms, 3),
         "tick_cpu_ms": round(1e3 * cpu / n_meas, 3),

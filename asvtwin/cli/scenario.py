@@ -6,8 +6,10 @@
 - ``asvtwin scenario list [--json]``: the scenarios shipped with the package.
 - ``asvtwin scenario schema [--out FILE]``: the JSON Schema of a scenario file, for editors
   (e.g. the YAML language server: ``# yaml-language-server: $schema=scenario.schema.json``).
-- ``asvtwin scenario run FILE [--json] [--duration S] [--seed N] [--out DIR]``: run it
-  headless through the twin; exit 0 when every criterion passed, 1 when one failed.
+- ``asvtwin scenario run FILE [--json] [--duration S] [--seed N] [--out DIR]
+  [--controller NAME]``: run it headless through the twin; exit 0 when every criterion
+  passed, 1 when one failed. ``--controller`` replaces the own ship's controller, so one
+  scenario compares ``los_psf`` with ``rl_psf`` (docs/rl.md).
 """
 
 from __future__ import annotations
@@ -20,6 +22,9 @@ from pathlib import Path
 from typing import Any
 
 from asvtwin.cli.argtypes import PSF_BACKENDS, positive_float
+
+#: The own ship's controllers (asvtwin.scenarios.schema.OwnShipSpec.controller).
+CONTROLLER_NAMES = ("manual", "los", "los_psf", "rl", "rl_psf")
 
 __all__ = ["register"]
 
@@ -65,6 +70,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--no-record", action="store_true", help="with --out: no run.mcap")
     r.add_argument("--psf-backend", default="auto", choices=PSF_BACKENDS,
                    help="safety filter backend (default: %(default)s)")
+    r.add_argument("--controller", default=None, choices=CONTROLLER_NAMES,
+                   help="replace the own ship's controller (default: the scenario's)")
     r.set_defaults(func=_run)
     p.set_defaults(func=lambda args: (p.print_help(sys.stderr), 2)[1])
 
@@ -174,6 +181,9 @@ def _run(args: argparse.Namespace) -> int:
     from asvtwin.scenarios import load_any
 
     scenario = load_any(args.file)
+    if args.controller is not None and args.controller != scenario.own_ship.controller:
+        own = scenario.own_ship.model_copy(update={"controller": args.controller})
+        scenario = scenario.model_copy(update={"own_ship": own})
     from asvtwin.cli.run import native_stdout_to_stderr
     from asvtwin.twin.runtime import run_scenario  # heavy: only once the file is valid
 

@@ -905,6 +905,7 @@ class Twin:
         return self.metrics.summarise(
             criteria=self.scenario.criteria, goal_reached=bool(st.done) if st else False,
             scenario=self.scenario.name, seed=self.seed, duration_s=sim_s, ticks=ticks,
+            controller=self.scenario.own_ship.controller,
             wall_s=self._wall, realtime_factor=sim_s / self._wall if self._wall > 0 else math.inf,
             filter_calls=f.calls if f else 0, interventions=f.interventions if f else 0,
             fallbacks=dict(f.fallbacks) if f else {}, ms_per_tick=sch.ms_per_tick(ticks),

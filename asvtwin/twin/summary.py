@@ -73,6 +73,8 @@ class RunSummary:
     degradations: tuple[str, ...]
     counters: dict[str, int] = field(default_factory=dict)
     recording: str | None = None
+    #: the own ship's controller (``own_ship.controller``, or ``--controller``)
+    controller: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready values (NaN becomes None)."""
@@ -93,7 +95,9 @@ class RunSummary:
         d = self.to_dict()
         mt = ", ".join(f"{k} {v:.0f} m" for k, v in self.min_distance_targets_m.items()) or "none"
         lines = [
-            (f"scenario {self.scenario} (seed {self.seed}): {self.duration_s:.0f} s simulated "
+            (f"scenario {self.scenario} (seed {self.seed}"
+             f"{', controller ' + self.controller if self.controller else ''}): "
+             f"{self.duration_s:.0f} s simulated "
              f"in {self.wall_s:.1f} s wall ({self.realtime_factor:.1f}x real time), "
              f"{self.ticks} ticks"),
             (f"collisions {self.collisions}, groundings {self.groundings}; closest approach: "

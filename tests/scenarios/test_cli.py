@@ -69,3 +69,21 @@ def test_run_short_json(tmp_path, capsys):
     assert summary["duration_s"] == pytest.approx(5.0, abs=0.1)
     assert rc == (0 if summary["passed"] else 1)
     assert (tmp_path / "summary.json").is_file() and (tmp_path / "run.mcap").is_file()
+
+
+@pytest.mark.skipif(importlib.util.find_spec("asvtwin.twin.runtime") is None,
+                    reason="asvtwin.twin.runtime is not available yet")
+def test_run_controller_override_is_used_and_reported(capsys):
+    """--controller replaces the scenario's own-ship controller (los_psf -> los here: no
+    filter calls at all) and the summary names the controller that ran."""
+    rc = main(["scenario", "run", "model_scale_crossing", "--json", "--duration", "5",
+               "--controller", "los"])
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["controller"] == "los" and summary["filter_calls"] == 0
+    assert rc in (0, 1)
+    main(["scenario", "run", "model_scale_crossing", "--json", "--duration", "5"])
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["controller"] == "los_psf" and summary["filter_calls"] > 0
+    with pytest.raises(SystemExit) as exc:  # argparse: usage error, exit 2, before any run
+        main(["scenario", "run", "model_scale_crossing", "--controller", "ppo"])
+    assert exc.value.code == 2 and "invalid choice: 'ppo'" in capsys.readouterr().err

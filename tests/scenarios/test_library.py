@@ -177,6 +177,27 @@ def test_model_scale_crossing_gives_way_and_completes_its_route():
     assert summary.max_cte_m < 10.0, text  # 8 L: it gives way to starboard, then returns
 
 
+@needs_runtime
+@pytest.mark.parametrize("name", ["default", "model_scale_crossing"])
+def test_the_trained_policy_behind_the_filter_passes(name):
+    """The embedded default runs the shipped PPO policy through the safety filter (rl_psf);
+    it, and the model-scale crossing under rl_psf, pass every criterion over the whole
+    run with no contact (the library comparison with los_psf: docs/rl.md)."""
+    from asvtwin.twin.runtime import run_scenario
+
+    s = load_library(name)
+    if s.own_ship.controller != "rl_psf":
+        s = s.model_copy(update={"own_ship": s.own_ship.model_copy(
+            update={"controller": "rl_psf"})})
+    summary = run_scenario(s, seed=s.seed, record=False)
+    text = summary.text()
+    assert summary.controller == "rl_psf", text
+    assert summary.collisions == 0 and summary.groundings == 0, text
+    for key, crit in summary.criteria.items():
+        assert crit["pass"], f"{name} under rl_psf: criterion {key} failed\n{text}"
+    assert summary.filter_calls > 0 and summary.interventions > 0, text  # the filter acted
+
+
 #: Library scenarios measured to miss one criterion with the twin's guidance as it stands
 #: (docs/scenarios.md: the studies of 2026-11-30, and why the twin does not use the
 #: 2026-12-01 options): name -> (the criterion or criteria missed, reason). Pinned as strict expected
