@@ -107,7 +107,8 @@ def score(run: Run, ais_mask: np.ndarray, nis: dict[str, list[float]]) -> dict[s
     }
 
 
-def run_set(kind: str, seeds: range, fusion: str, persistence: float, dimensions: bool = False) -> dict[str, float]:
+def run_set(kind: str, seeds: range, fusion: str, persistence: float, dimensions: str | None = None
+            ) -> dict[str, float]:
     parts = []
     for seed in seeds:
         land = sensor_land = None
@@ -124,7 +125,8 @@ def run_set(kind: str, seeds: range, fusion: str, persistence: float, dimensions
         else:
             x0, L, ais = vessel_pairs(seed)
         band = 0.0 if kind == "near_coast_no_band" else TrackerConfig().chart_error_m
-        cfg = TrackerConfig(fusion=fusion, chart_error_m=band, depth_persistence_s=persistence)
+        cfg = TrackerConfig(fusion=fusion, chart_error_m=band, depth_persistence_s=persistence,
+                            measure_with_dimensions=dimensions == "measure")
         tracker = Tracker(cfg, land=land)
         if dimensions:  # AIS static data: the real length and beam of every vessel with AIS
             for i in np.flatnonzero(ais):
@@ -185,8 +187,12 @@ def main() -> None:
     ap.add_argument("--first-seed", type=int, default=0,
                     help="first seed of each scene (default 0; the tracker's settings were chosen on seeds "
                          "0-3, so a held-out check uses e.g. --first-seed 100)")
-    ap.add_argument("--ais-dimensions", action="store_true",
-                    help="give the tracker each AIS vessel's length and beam (AIS static data, Tracker.set_dimensions)")
+    ap.add_argument("--ais-dimensions", nargs="?", const="measure", default=None,
+                    choices=("measure", "footprint"),
+                    help="give the tracker each AIS vessel's length and beam (AIS static data, "
+                         "Tracker.set_dimensions); 'measure' (the flag alone): they size the LiDAR "
+                         "measurement too; 'footprint': they only keep new tracks off the hull "
+                         "(TrackerConfig.measure_with_dimensions=False, the twin's setting)")
     args = ap.parse_args()
     count = args.seeds if args.seeds is not None else (2 if args.quick else 4)
     if count < 1:
@@ -199,7 +205,7 @@ def main() -> None:
     out = {
         "fusion": args.fusion,
         "depth_persistence": args.depth_persistence,
-        "ais_dimensions": int(args.ais_dimensions),
+        "ais_dimensions": args.ais_dimensions or 0,
         "seeds_per_scene": len(seeds), "first_seed": args.first_seed,
         # every second's NEES against χ² bounds for its effective sample size (the
         # autocorrelation measured from the NEES series themselves) ...

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 
@@ -54,7 +56,8 @@ __all__ = ["AisInput", "DisturbanceEstimator", "FilterStage", "Perception", "tra
 
 def tracker_config(own_length_m: float, full_scale_m: float) -> TrackerConfig:
     """The tracker's settings for an own ship of ``own_length_m``, Froude-scaled below
-    full scale (s = own_length_m / full_scale_m, at most 1; s = 1 gives the defaults).
+    full scale (s = own_length_m / full_scale_m, at most 1; s = 1 gives the defaults but
+    ``measure_with_dimensions=False``: AIS dimensions only keep new tracks off a known hull).
 
     The defaults describe full-scale vessels: an acceleration noise q of 0.01 m²/s³, a new
     track's velocity σ of 8 m/s, AIS positions to 5 m. A model-scale scene's vessels are
@@ -69,7 +72,9 @@ def tracker_config(own_length_m: float, full_scale_m: float) -> TrackerConfig:
     and the chart's error a property of the chart; reporting intervals and coasting times
     are real seconds. None of these change."""
     s = min(1.0, float(own_length_m) / float(full_scale_m))
-    cfg = TrackerConfig()
+    # the AIS static reports' length and beam keep new tracks off a known hull, but do not
+    # size its LiDAR measurement: that model is over-confident (docs/tracking.md)
+    cfg = TrackerConfig(measure_with_dimensions=False)
     if s >= 1.0:
         return cfg
     r = math.sqrt(s)
@@ -105,6 +110,8 @@ class AisInput:
         self.pipeline = AisPipeline(scene)
         self.registry = TargetRegistry(epoch_unix_s=epoch_unix_s, evict_after_s=evict_after_s)
         self._pending: list[AisMeasurementBatch] = []
+        #: static records (type 5 / 24: length and beam) since the last take_static()
+        self._static: list[Any] = []
         self.lines = 0
         self.reports = 0
         self.last_report_t_s = math.nan
@@ -115,6 +122,8 @@ class AisInput:
         batch = self.pipeline.feed_batch(lines, recv_time_s=self.epoch_unix_s + t_s)
         if len(batch) or batch.static:
             self.registry.update_batch(batch)
+        if batch.static:
+            self._static.extend(batch.static)
         if len(batch):
             self.reports += len(batch)
             self.last_report_t_s = t_s
@@ -133,6 +142,12 @@ class AisInput:
                     for f in dataclasses.fields(AisMeasurementBatch)}
             out = AisMeasurementBatch(**cols)
         self._pending = []
+        return out
+
+    def take_static(self) -> list[Any]:
+        """The static records (MMSI, length, beam) received since the last call: the
+        tracker sizes a tied track's hull from them."""
+        out, self._static = self._static, []
         return out
 
     def targets(self, t_s: float) -> TargetSnapshot:
@@ -154,8 +169,11 @@ class Perception:
         self.tracks: TrackSnapshot = self.tracker.step(0.0)
 
     def step(self, t_s: float, scan: LidarScan | None,
-             ais: AisMeasurementBatch | tuple[()]) -> TrackSnapshot:
-        """Track update at ``t_s`` with the scan taken since the last call (or None)."""
+             ais: AisMeasurementBatch | tuple[()], static: Iterable[Any] = ()) -> TrackSnapshot:
+        """Track update at ``t_s`` with the scan taken since the last call (or None), the
+        AIS reports and the AIS static records (length and beam by MMSI) since then."""
+        if static:
+            self.tracker.update_static(static)
         cl = None
         if scan is not None:
             cl = cluster_scan(scan, self.land, self.tracker.config.cluster)

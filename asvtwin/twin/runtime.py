@@ -590,7 +590,8 @@ class Twin:
                 self.scan = self._scan_new = scan
         # 4. tracker
         if sch.due("tracker", t):
-            ok, _ = sch.call("tracker", t, self.perception.step, t, self._scan_new, self.ais.take())
+            ok, _ = sch.call("tracker", t, self.perception.step, t, self._scan_new, self.ais.take(),
+                             self.ais.take_static())
             self._scan_new = None
             if sch.due("tracking_score", t):
                 sch.call("tracking_score", t, self.metrics.tracking, self.perception.tracks,

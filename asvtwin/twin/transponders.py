@@ -184,8 +184,10 @@ class Transponders:
             st = AisStatic(
                 mmsi=self._mmsi[i], t_unix_s=float(t_unix), msg_type=24 if self._class_b[i] else 5,
                 name=self._names[i][:20].upper(), callsign=None, ship_type=self._types[i],
-                to_bow_m=round(0.5 * L), to_stern_m=round(0.5 * L),
-                to_port_m=round(0.5 * B), to_starboard_m=round(0.5 * B))
+                # the halves sum to the rounded whole (round(2.5) is 2: halves of a 5 m
+                # beam rounded each came to 4 m)
+                to_bow_m=round(0.5 * L), to_stern_m=round(L) - round(0.5 * L),
+                to_port_m=round(0.5 * B), to_starboard_m=round(B) - round(0.5 * B))
             for msg in encode_static(st, seq_id=self._seq % 10,
                                      channel="AB"[int(self.rng.integers(2))]):
                 lines += self._tagged(t_unix, msg)

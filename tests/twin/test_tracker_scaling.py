@@ -16,8 +16,11 @@ FULL = FULL_SCALE_REFERENCE_M
 
 
 def test_full_scale_keeps_the_tracker_defaults():
-    assert tracker_config(FULL, FULL) == TrackerConfig()
-    assert tracker_config(300.0, FULL) == TrackerConfig()  # larger hulls: at most 1
+    # but for the AIS dimensions, which only keep new tracks off a known hull in the twin
+    twin_default = TrackerConfig(measure_with_dimensions=False)
+    assert tracker_config(FULL, FULL) == twin_default
+    assert tracker_config(300.0, FULL) == twin_default  # larger hulls: at most 1
+    assert not tracker_config(1.255, FULL).measure_with_dimensions
 
 
 def test_model_scale_scales_motion_and_lengths_not_sensors():
