@@ -96,11 +96,20 @@ def score(run: Run, ais_mask: np.ndarray, nis: dict[str, list[float]]) -> dict[s
         seq = assigned[WARMUP:, j]
         seq = seq[seq >= 0]
         switches += int((seq[1:] != seq[:-1]).sum())
-    # lost: a matched track that disappears while its vessel is still matched later by another id
+    # lost: a matched track deleted (gone from the snapshot, confirmed or not) while its
+    # vessel is matched again later, by another id; one per such deletion
+    lost = 0
+    for j in range(m):
+        ks = np.flatnonzero(assigned[:, j] >= 0)
+        for a, b in zip(ks[:-1].tolist(), ks[1:].tolist()):
+            old_id, new_id = int(assigned[a, j]), int(assigned[b, j])
+            if old_id != new_id and old_id not in {int(i) for i in run.snaps[b].ids}:
+                lost += 1
     hours = (T - WARMUP) / 3600.0
     return {
         "sq_err": float(np.sum(sq)), "n": len(sq), "nees_sum": float(np.sum(nees)), "sigma": sig,
-        "nees_thin": nees_thin, "nees_series": list(series.values()), "false": len(false), "switches": switches, "hours": hours,
+        "nees_thin": nees_thin, "nees_series": list(series.values()), "false": len(false), "switches": switches,
+        "lost": lost, "hours": hours,
         "mmsi_swaps": mmsi_swaps(run, ais_mask, start=WARMUP),
         "mmsi_swaps_incl_warmup": mmsi_swaps(run, ais_mask),
         "nis_lidar": nis["lidar"], "nis_ais": nis["ais"],
@@ -173,6 +182,8 @@ def run_set(kind: str, seeds: range, fusion: str, persistence: float, dimensions
         "mmsi_swaps_incl_warmup": sum(p["mmsi_swaps_incl_warmup"] for p in parts),
         "false_tracks_per_h": sum(p["false"] for p in parts) / hours,
         "false_tracks": sum(p["false"] for p in parts),
+        "lost_tracks_per_h": sum(p["lost"] for p in parts) / hours,
+        "lost_tracks": sum(p["lost"] for p in parts),
         "track_steps": n,
     }
 
@@ -222,6 +233,8 @@ def main() -> None:
         # false confirmed tracks near the coast over open sea (+1 each: finite when open sea has none)
         "coast_false_track_ratio": (c["false_tracks"] + 1.0) / (co["false_tracks"] + 1.0),
         "coast_false_tracks_per_h": c["false_tracks_per_h"], "open_false_tracks_per_h": co["false_tracks_per_h"],
+        "open_sea_lost_tracks_per_h": o["lost_tracks_per_h"],
+        "coast_lost_tracks_per_h": c["lost_tracks_per_h"],
         "coast_rmse_ratio": c["rmse_m"] / co["rmse_m"],
         # the same without the coast band (the defect: clutter of an offset chart)
         "coast_false_track_ratio_without_band": (res["near_coast_no_band"]["false_tracks"] + 1.0)
