@@ -49,6 +49,8 @@ from pathlib import Path
 
 import numpy as np
 
+from asvtwin.cli.argtypes import CONTROLLERS
+
 
 def _rss_mb() -> float:
     """Current resident set size [MB] (Linux /proc; ru_maxrss elsewhere)."""
@@ -116,8 +118,7 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
     ap.add_argument("--warmup", type=float, default=20.0, help="simulated s not measured")
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--quick", action="store_true", help="a short check: a 300 s run")
-    ap.add_argument("--controller", default=None,
-                    choices=("manual", "los", "los_psf", "rl", "rl_psf"),
+    ap.add_argument("--controller", default=None, choices=CONTROLLERS,
                     help="the own ship's controller (default: the default scenario's)")
     args = ap.parse_args(argv)
     if args.quick:
@@ -130,8 +131,7 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
 
     base = default_scenario()
     if args.controller is not None:
-        base = base.model_copy(update={"own_ship": base.own_ship.model_copy(
-            update={"controller": args.controller})})
+        base = base.with_controller(args.controller)
     targets = list(base.targets) + extra_targets(base, args.extra_targets, args.seed)
     total = args.warmup + args.duration
     scenario = base.model_copy(update={"targets": targets, "duration_s": max(total, 1.0)})

@@ -21,6 +21,7 @@ import math
 from pathlib import Path
 
 __all__ = [
+    "CONTROLLERS",
     "PSF_BACKENDS",
     "fraction",
     "non_negative_float",
@@ -33,6 +34,10 @@ __all__ = [
 #: :data:`asvtwin.control.BACKENDS` (not imported here: the control package takes seconds
 #: to import, and ``--help`` must stay fast; a test keeps the two equal).
 PSF_BACKENDS = ("auto", "acados", "casadi-ipopt", "casadi-fatrop")
+
+#: ``choices`` of every ``--controller`` option: :data:`asvtwin.scenarios.CONTROLLERS`
+#: (not imported here for the same reason; a test keeps the two equal).
+CONTROLLERS = ("manual", "los", "los_psf", "rl", "rl_psf")
 
 
 def _number(text: str) -> float:

@@ -21,10 +21,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from asvtwin.cli.argtypes import PSF_BACKENDS, positive_float
-
-#: The own ship's controllers (asvtwin.scenarios.schema.OwnShipSpec.controller).
-CONTROLLER_NAMES = ("manual", "los", "los_psf", "rl", "rl_psf")
+from asvtwin.cli.argtypes import CONTROLLERS, PSF_BACKENDS, positive_float
 
 __all__ = ["register"]
 
@@ -70,7 +67,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--no-record", action="store_true", help="with --out: no run.mcap")
     r.add_argument("--psf-backend", default="auto", choices=PSF_BACKENDS,
                    help="safety filter backend (default: %(default)s)")
-    r.add_argument("--controller", default=None, choices=CONTROLLER_NAMES,
+    r.add_argument("--controller", default=None, choices=CONTROLLERS,
                    help="replace the own ship's controller (default: the scenario's)")
     r.set_defaults(func=_run)
     p.set_defaults(func=lambda args: (p.print_help(sys.stderr), 2)[1])
@@ -181,9 +178,8 @@ def _run(args: argparse.Namespace) -> int:
     from asvtwin.scenarios import load_any
 
     scenario = load_any(args.file)
-    if args.controller is not None and args.controller != scenario.own_ship.controller:
-        own = scenario.own_ship.model_copy(update={"controller": args.controller})
-        scenario = scenario.model_copy(update={"own_ship": own})
+    if args.controller is not None:
+        scenario = scenario.with_controller(args.controller)
     from asvtwin.cli.run import native_stdout_to_stderr
     from asvtwin.twin.runtime import run_scenario  # heavy: only once the file is valid
 

@@ -28,6 +28,7 @@ from asvtwin.scenarios.loader import (
 )
 from asvtwin.scenarios.schema import (
     AIS_SHIP_TYPE,
+    CONTROLLERS,
     SCENARIO_FORMAT,
     AisReplay,
     AisSpec,
@@ -52,6 +53,7 @@ from asvtwin.scenarios.schema import (
 
 __all__ = [
     "AIS_SHIP_TYPE",
+    "CONTROLLERS",
     "DEFAULT_SCENE",
     "SCENARIO_FORMAT",
     "AisReplay",

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from datetime import UTC, datetime
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 import numpy as np
 from pydantic import (
@@ -33,11 +33,13 @@ from pydantic import (
     Discriminator,
     Field,
     Tag,
+    ValidationError,
     field_validator,
     model_validator,
 )
 
 from asvtwin.checks import F8 as _F8
+from asvtwin.errors import ScenarioError
 from asvtwin.geo import LocalFrame
 from asvtwin.units import KNOT_M_S
 
@@ -73,7 +75,8 @@ SCENARIO_FORMAT = "asvtwin.scenario/1"
 #: Own-ship vessel models (``asvtwin.vessel.cybership2`` and ``cybership2_full_scale``).
 VESSELS = ("cybership2", "cybership2_full_scale")
 #: Own-ship controllers (``asvtwin.twin.controllers`` registry names).
-CONTROLLERS = ("manual", "los", "los_psf", "rl", "rl_psf")
+Controller = Literal["manual", "los", "los_psf", "rl", "rl_psf"]
+CONTROLLERS: tuple[str, ...] = get_args(Controller)
 #: Length of CyberShip II [m], the hull every vessel is scaled from.
 MODEL_LENGTH_M = 1.255
 #: Length of each own-ship vessel [m] (the full-scale one is CyberShip II x 70).
@@ -197,7 +200,7 @@ class OwnShipSpec(_Model):
     route: list[Position] = Field(
         default_factory=list, description="waypoints after the start, in order (may be empty)"
     )
-    controller: Literal["manual", "los", "los_psf", "rl", "rl_psf"] = Field(
+    controller: Controller = Field(
         default="los_psf",
         description="manual (held thrust, set by the operator), los (LOS + autopilot), "
         "los_psf (LOS through the safety filter), rl, rl_psf (the trained policy)",
@@ -525,6 +528,21 @@ class Scenario(_Model):
         if self.criteria.goal_reached and not self.own_ship.route:
             raise ValueError("criteria.goal_reached needs own_ship.route (there is no goal)")
         return self
+
+    def with_controller(self, controller: str) -> Scenario:
+        """This scenario with the own ship under ``controller``, validated as a file
+        would be (``los``/``los_psf`` need a route and a course-keeping speed); a
+        :class:`~asvtwin.errors.ScenarioError` says why not."""
+        if controller == self.own_ship.controller:
+            return self
+        data = self.model_dump()
+        data["own_ship"]["controller"] = controller
+        try:
+            return type(self).model_validate(data)
+        except ValidationError as exc:
+            errs = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in exc.errors())
+            raise ScenarioError(f"scenario {self.name!r} cannot run under controller "
+                                f"{controller!r}: {errs}") from None
 
 
 def scenario_json_schema() -> dict[str, Any]:

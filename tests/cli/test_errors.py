@@ -174,6 +174,13 @@ def test_psf_backend_choices_match_the_control_package():
     assert PSF_BACKENDS == ("auto", *BACKENDS)
 
 
+def test_controller_choices_match_the_scenario_schema():
+    from asvtwin.cli.argtypes import CONTROLLERS as CLI_CONTROLLERS
+    from asvtwin.scenarios import CONTROLLERS
+
+    assert CLI_CONTROLLERS == CONTROLLERS
+
+
 def _every_option():
     def walk(parser):
         for action in parser._actions:

@@ -87,3 +87,16 @@ def test_run_controller_override_is_used_and_reported(capsys):
     with pytest.raises(SystemExit) as exc:  # argparse: usage error, exit 2, before any run
         main(["scenario", "run", "model_scale_crossing", "--controller", "ppo"])
     assert exc.value.code == 2 and "invalid choice: 'ppo'" in capsys.readouterr().err
+
+
+def test_run_controller_override_is_validated_like_a_file(tmp_path, capsys):
+    """A controller the scenario cannot run under is refused before the run: LOS needs a
+    route, and this scenario has none."""
+    f = tmp_path / "drift.yaml"
+    f.write_text("name: drift\nown_ship:\n  start: {north_m: 3000, east_m: -2000}\n"
+                 "  controller: manual\ncriteria: {goal_reached: false}\n")
+    assert main(["scenario", "check", str(f)]) == 0
+    capsys.readouterr()
+    assert main(["scenario", "run", str(f), "--controller", "los"]) == 2
+    err = capsys.readouterr().err
+    assert "cannot run under controller 'los'" in err and "route" in err

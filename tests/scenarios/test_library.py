@@ -185,10 +185,7 @@ def test_the_trained_policy_behind_the_filter_passes(name):
     run with no contact (the library comparison with los_psf: docs/rl.md)."""
     from asvtwin.twin.runtime import run_scenario
 
-    s = load_library(name)
-    if s.own_ship.controller != "rl_psf":
-        s = s.model_copy(update={"own_ship": s.own_ship.model_copy(
-            update={"controller": "rl_psf"})})
+    s = load_library(name).with_controller("rl_psf")
     summary = run_scenario(s, seed=s.seed, record=False)
     text = summary.text()
     assert summary.controller == "rl_psf", text
