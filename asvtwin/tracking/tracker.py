@@ -217,8 +217,11 @@ class Tracker:
         """Known ``(length, beam)`` [m] by MMSI (read-only)."""
         return MappingProxyType(dict(self._dims))
 
-    def _no_dims(self) -> _F8:
-        """NaN (n, 2): every track's size unknown (``measure_with_dimensions`` off)."""
+    def _measured_dims(self) -> _F8:
+        """:meth:`_track_dims` where they size the LiDAR measurement
+        (``measure_with_dimensions``), else NaN: every size unknown to the measurement."""
+        if self.config.measure_with_dimensions:
+            return self._track_dims()
         return np.full((self._a["mmsi"].shape[0], 2), np.nan)
 
     def _track_dims(self) -> _F8:
@@ -403,7 +406,7 @@ class Tracker:
         ax = a["axes"][sel]
         semi = np.column_stack([np.nan_to_num(ax[:, 0], nan=5.0), np.nan_to_num(ax[:, 1], nan=2.0)])
         # a tied track with AIS dimensions: its real footprint
-        dims = (self._track_dims() if cfg.measure_with_dimensions else self._no_dims())[sel]
+        dims = self._measured_dims()[sel]
         known = np.isfinite(dims[:, 0])
         semi[known] = 0.5 * dims[known]
         semi[:, 1] = np.minimum(semi[:, 1], semi[:, 0])
@@ -499,7 +502,7 @@ class Tracker:
             np.ascontiguousarray(cl.offsets, dtype=np.int64), np.asarray(cl.origin_ned, dtype=np.float64).reshape(2),
             _end_shadows(cl), _hull_prm(mdl, cl), mdl.heading_floor_rad, cfg.course_min_speed_m_s ** 2,
             cfg.course_max_std_rad ** 2, self._gL, FORBIDDEN, cfg.course_min_returns,
-            self._track_dims() if cfg.measure_with_dimensions else self._no_dims(),
+            self._measured_dims(),
             a["mmsi"], a["hasA"], a["tA"], a["xA"], a["PA"], t, cfg.max_coast_ais_s, self._gA_id,
             _NO_SIGHT if m.sight is None else m.sight)
         self._count("lidar_vetoed_by_ais", vetoed)
@@ -625,11 +628,13 @@ class Tracker:
         the beam plus the margin, still starts its own track."""
         a, cfg = self._a, self.config
         out = np.zeros(len(z), bool)
+        if not len(z):
+            return out
         dims = self._track_dims()
         v = a["x"][:, 2:]
         spd = np.hypot(v[:, 0], v[:, 1])
         rows = np.flatnonzero(np.isfinite(dims[:, 0]) & (spd >= cfg.course_min_speed_m_s))
-        if not rows.size or not len(z):
+        if not rows.size:
             return out
         u = v[rows] / spd[rows, None]  # unit course (north, east)
         d = z[:, None, :] - a["x"][None, rows, :2]  # (k, r, 2)

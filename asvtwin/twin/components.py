@@ -20,7 +20,6 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Iterable
-from typing import Any
 
 import numpy as np
 
@@ -37,7 +36,7 @@ from asvtwin.control import (
 from asvtwin.geo import Scene
 from asvtwin.observer import DisturbanceObserver, FaultDetector, ResidualModel, SensorNoise
 from asvtwin.sensors import LidarScan
-from asvtwin.sources.ais import AisPipeline, ReportBatch, TargetRegistry, TargetSnapshot
+from asvtwin.sources.ais import AisPipeline, AisStatic, ReportBatch, TargetRegistry, TargetSnapshot
 from asvtwin.tracking import (
     AisMeasurementBatch,
     Clusters,
@@ -111,7 +110,7 @@ class AisInput:
         self.registry = TargetRegistry(epoch_unix_s=epoch_unix_s, evict_after_s=evict_after_s)
         self._pending: list[AisMeasurementBatch] = []
         #: static records (type 5 / 24: length and beam) since the last take_static()
-        self._static: list[Any] = []
+        self._static: list[AisStatic] = []
         self.lines = 0
         self.reports = 0
         self.last_report_t_s = math.nan
@@ -144,7 +143,7 @@ class AisInput:
         self._pending = []
         return out
 
-    def take_static(self) -> list[Any]:
+    def take_static(self) -> list[AisStatic]:
         """The static records (MMSI, length, beam) received since the last call: the
         tracker sizes a tied track's hull from them."""
         out, self._static = self._static, []
@@ -169,7 +168,7 @@ class Perception:
         self.tracks: TrackSnapshot = self.tracker.step(0.0)
 
     def step(self, t_s: float, scan: LidarScan | None,
-             ais: AisMeasurementBatch | tuple[()], static: Iterable[Any] = ()) -> TrackSnapshot:
+             ais: AisMeasurementBatch | tuple[()], static: Iterable[AisStatic] = ()) -> TrackSnapshot:
         """Track update at ``t_s`` with the scan taken since the last call (or None), the
         AIS reports and the AIS static records (length and beam by MMSI) since then."""
         if static:

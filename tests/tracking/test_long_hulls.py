@@ -19,11 +19,6 @@ L_BIG, B_BIG = 146.9, 24.5
 MMSI_BIG = 257000000  # run_scene's MMSI for target 0
 
 
-class _Static:
-    def __init__(self, mmsi: int, length_m: float, beam_m: float) -> None:
-        self.mmsi, self.length_m, self.beam_m = mmsi, length_m, beam_m
-
-
 def _ids_on(run, j: int, radius_m: float, start: int = 0) -> set[int]:
     """Ids of confirmed tracks within ``radius_m`` of target ``j``'s centre, from tick
     ``start`` on."""
@@ -50,7 +45,7 @@ def _run(tug: bool, dims: bool, north_m: float = 150.0, measure: bool = True):
     x0, L, B, ais = _scene(tug, north_m)
     tr = Tracker(TrackerConfig(measure_with_dimensions=measure))
     if dims:
-        tr.update_static([_Static(MMSI_BIG, L_BIG, B_BIG)])
+        assert tr.set_dimensions(MMSI_BIG, L_BIG, B_BIG)  # as an AIS static report gives them
     lidar = LidarConfig(n_rays=360, max_range_m=500.0)  # the twin's default LiDAR
     return run_scene(x0, L, T=300, ais_mask=ais, beam_m=B, lidar=lidar, seed=4, tracker=tr)
 
