@@ -24,6 +24,7 @@ import dataclasses
 import logging
 import math
 import warnings
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -32,6 +33,7 @@ from asvtwin.checks import F8 as _F8
 from asvtwin.checks import check_vector
 from asvtwin.control.backends import (
     Backend,
+    RawSolution,
     available_backends,
     backend_lock,
     claim_backend,
@@ -93,7 +95,7 @@ class SafetyFilter:
     >>> from asvtwin.control import SafetyFilter, PsfConfig, CircleObstacles
     >>> from asvtwin.vessel import cybership2
     >>> psf = SafetyFilter(cybership2(), config=PsfConfig(N=40, backend="casadi-ipopt"))
-    >>> rock = CircleObstacles(centres=[[11.0, 0.0]], radii=[1.0])
+    >>> rock = CircleObstacles(centres=[[8.0, 0.0]], radii=[1.0])
     >>> res = psf.filter([0, 0, 0, 0.3, 0, 0], [2.0, 0, 0], rock, t_s=0.0)
     >>> res.fallback, res.intervened, "obstacle 0 ahead" in res.explanation
     ('none', True, True)
@@ -367,11 +369,11 @@ class SafetyFilter:
         retries = 0 if (in_streak and not cfg.retry_in_streak) else cfg.uncertified_retries
         for rnd in range(1 + retries):
             for _ in range(attempts):
-                self._slots.set_terminal(xg[-1, 3:])  # stage N as the guess ends
+                self._slots.set_terminal(xg[-1, 3:])  # exact where the guess ends
                 try:
                     with backend_lock(self.backend):  # shared per process: one at a time
                         self._own_backend()
-                        raw = self.backend.solve(x, uL, P, xg, ug)
+                        raw = self._solve(x, uL, P, xg, ug, retry=rnd > 0)
                     U = np.clip(raw.u, self.u_lb, self.u_ub)
                     status, ok = raw.status, raw.success
                     iters += raw.iterations
@@ -432,6 +434,22 @@ class SafetyFilter:
                             radii, segs, labels, moving, cert, status, reason, iters,
                             t_solve, chosen_kind, first, tuple(scored), notes,
                             detail=chosen_detail)
+
+    def _solve(self, x: _F8, uL: _F8, P: _F8, xg: _F8, ug: _F8, *, retry: bool
+               ) -> RawSolution:
+        """One backend solve; a retry of an SQP-RTI backend may take up to
+        ``retry_rti_steps`` steps (its single step from a plan that was not certified
+        often overshoots the nonlinear terminal constraints, and the next call's step
+        overshoots back)."""
+        b: Any = self.backend  # the acados backend's rti_steps is not in the protocol
+        steps = getattr(b, "rti_steps", None)
+        if not retry or steps is None or self.config.retry_rti_steps <= steps:
+            return b.solve(x, uL, P, xg, ug)
+        b.rti_steps = self.config.retry_rti_steps
+        try:
+            return b.solve(x, uL, P, xg, ug)
+        finally:
+            b.rti_steps = steps
 
     def _pass_through(self, x: _F8, uL: _F8, u_given: _F8, U: _F8, X: _F8, margins: _F8,
                       term: float, centres: _F8, radii: _F8, segs: _F8, labels: list[str],

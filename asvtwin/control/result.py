@@ -61,6 +61,9 @@ class PsfConfig:
         Iteration limit of the CasADi solvers.
     rti_steps : int
         Largest number of SQP-RTI steps per call (acados).
+    retry_rti_steps : int
+        Largest number of SQP-RTI steps of a retry (acados; stops earlier when a step
+        changes the inputs by less than 0.1 % of their range).
     cold_start_solves : int
         Solver calls allowed when there is no previous solver plan to warm-start from.
     uncertified_retries : int
@@ -122,6 +125,7 @@ class PsfConfig:
     certify_tol_m: float | None = None
     max_iter: int = 200
     rti_steps: int = 1
+    retry_rti_steps: int = 3
     cold_start_solves: int = 5
     uncertified_retries: int = 1
     retry_in_streak: bool = True
@@ -142,6 +146,7 @@ class PsfConfig:
             ("n_segments", self.n_segments >= 0, ">= 0"),
             ("max_iter", self.max_iter >= 1, ">= 1"),
             ("rti_steps", self.rti_steps >= 1, ">= 1"),
+            ("retry_rti_steps", self.retry_rti_steps >= 1, ">= 1"),
             ("cold_start_solves", self.cold_start_solves >= 1, ">= 1"),
             ("uncertified_retries", 0 <= self.uncertified_retries <= 5, "in [0, 5]"),
             ("gamma", len(self.gamma) == 3 and min(self.gamma) >= 0, "3 values >= 0"),

@@ -7,12 +7,15 @@ the solver sees those that come nearest to the predicted paths (the learner's pl
 the warm start), stage by stage for moving circles. Unused slots hold far-away dummies.
 Stage N asks what the certification asks: d_safe + d_f √V_N beyond static obstacles and
 the coast (:meth:`asvtwin.control.certification.Certifier.terminal_requirement`), d_safe
-from moving ones.
+from moving ones, with V_N the plan's own through the tangent of √V_N at the warm
+start's end (:mod:`asvtwin.control.backends.ocp`: its slope and which slots are static
+are stage N's last parameters).
 """
 
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,10 +29,15 @@ __all__ = ["SolverSlots"]
 
 log = logging.getLogger("asvtwin.control.psf")
 
+#: The smallest tangent point √V of stage N's credit term (its slope is c d_f / (2 s)).
+MIN_ROOT_V = 0.1
+
+
 
 class SolverSlots:
     """The stage-parameter buffer (N+1, n_p) of one filter, rewritten every call:
-    ``[d̂ (3), clearance (1), circles (3 n_circles), segments (4 n_segments)]``."""
+    ``[d̂ (3), clearance (1), circles (3 n_circles), segments (4 n_segments), a (1),
+    static (n_circles)]``."""
 
     def __init__(self, spec: OcpSpec, length_m: float, cert: Certifier) -> None:
         self.spec, self.cert, self.length_m = spec, cert, length_m
@@ -38,6 +46,8 @@ class SolverSlots:
         self.P = np.zeros((N + 1, spec.n_p))
         # the solver plans with the certification tolerance as margin (eq. (e)/(f))
         self.P[:, 3] = cert.clear + cert.tol_m
+        self._k0 = 4 + 3 * nc + 4 * spec.n_segments  # a, then the static flags
+        self._used = 0
         self.circ = self.P[:, 4: 4 + 3 * nc].reshape(N + 1, nc, 3)
         if not np.shares_memory(self.circ, self.P):  # pragma: no cover - numpy layout
             raise AssertionError("the circle slots must be a view of the stage parameters")
@@ -55,8 +65,8 @@ class SolverSlots:
         """Stage parameters (N+1, n_p) (an internal buffer: backends copy it) and the
         indices of the circles and segments that got a slot: those that come nearest to
         the predicted ``paths`` (each (N+1, 2)), stage by stage for moving circles.
-        ``nu_end``: the warm start's end velocity, for stage N's requirement (default:
-        none, the full d_f of eq. (f)); ``moving``: which circles move."""
+        ``nu_end``: the warm start's end velocity, where stage N's requirement is
+        exact (:meth:`set_terminal`); ``moving``: which circles move (default: none)."""
         s = self.spec
         m, k = centres.shape[1], segs.shape[0]
         ci = np.arange(m)
@@ -89,26 +99,38 @@ class SolverSlots:
             sg = np.empty((s.n_segments, 4))
             sg[len(si):] = self._dummy_segment + x[[0, 1, 0, 1]]
             sg[: len(si)] = segs[si]
-            P[:, 4 + 3 * nc:] = sg.ravel()
+            P[:, 4 + 3 * nc: 4 + 3 * nc + 4 * s.n_segments] = sg.ravel()
         self._r_end = circ[-1, :, 2].copy()
         self._moving[:] = False
         if used and moving is not None:
             self._moving[:used] = moving[ci] if m > nc else moving
+        self._used = used
         self.set_terminal(nu_end)
         return P, ci, si
 
     def set_terminal(self, nu_end: _F8 | None) -> None:
-        """Stage N's clearance for a plan ending near ``nu_end`` (None: the full d_f of
-        eq. (f)).
+        """Stage N's clearance, the slope a of its credit term and the static flags, for
+        a warm start ending at velocity ``nu_end`` (None: at rest).
 
-        The solver is asked what the certification asks: d_safe + d_f √V_N beyond the
-        static obstacles and the coast (the braking credit), V_N taken from the warm
-        start's end; moving circles keep d_safe (the filter gives them radius − d_f at
-        stage N, and their slot's radius grows back by what the clearance gives up).
-        With the full d_f the OCP was often infeasible among static obstacles where a
-        slow-ending plan certifies, and the solver's slack answer then failed
-        certification (benchmarks/psf.py: 4 fallbacks in 300 calls)."""
-        c = self.cert
-        extra = c.d_f_m if nu_end is None else c.terminal_requirement(nu_end)
-        self.P[-1, 3] = c.d_safe_m + extra + c.tol_m
-        self.circ[-1, :, 2] = self._r_end + np.where(self._moving, c.d_f_m - extra, 0.0)
+        The solver is asked what the certification asks: d_safe + d_f (1 − c) +
+        c d_f √V_N beyond the static obstacles and the coast (the braking credit, faded
+        by the disturbance estimate: c), through the tangent of √V_N at the warm start's
+        V = s² (s ≥ :data:`MIN_ROOT_V`): exact there, larger elsewhere; d_safe from moving
+        circles (the filter gives them radius − d_f at stage N: their slot's radius grows
+        back by what the clearance gives up, and their credit term is off). With the
+        full d_f the OCP was often infeasible among static obstacles where a slow-ending
+        plan certifies (benchmarks/psf.py: 4 fallbacks in 300 calls); with a
+        requirement fixed from the warm start's end speed the solver ended moving beside
+        a shore and its plans failed certification at stage N (a model-scale ship
+        stopped 2 m from a headland stayed there for 170 s, both backends)."""
+        c, P, k0, nc, used = self.cert, self.P, self._k0, self.spec.n_circles, self._used
+        credit = c.credit_factor * c.d_f_m
+        V = 0.0 if nu_end is None else float(nu_end @ c.P_f @ nu_end)
+        s = min(max(math.sqrt(max(V, 0.0)), MIN_ROOT_V), 1.0)
+        base = c.d_f_m - credit + 0.5 * credit * s  # what stage N asks beyond d_safe at V = 0
+        P[-1, 3] = c.d_safe_m + base + c.tol_m
+        P[-1, k0] = 0.5 * credit / s
+        static = np.zeros(nc)
+        static[:used] = ~self._moving[:used]
+        P[-1, k0 + 1: k0 + 1 + nc] = static
+        self.circ[-1, :, 2] = self._r_end + np.where(self._moving, c.d_f_m - base, 0.0)

@@ -150,10 +150,12 @@ class VecPathEnv:
             # HPIPM's SPEED mode and no retry solve within a fallback streak: ~30 % less
             # CPU per solve, and ~40 % less per training step early in training (the
             # policy pushing at an obstacle for hundreds of steps), with the encounter
-            # set's model-scale results unchanged (docs/rl.md, docs/psf.md)
+            # set's model-scale results unchanged (docs/rl.md, docs/psf.md); a retry
+            # takes one SQP-RTI step, as when the policy was trained
             pc = PsfConfig(N=cfg.psf_horizon, backend=cfg.psf_backend,
                            n_circles=cfg.psf_solver_circles, n_segments=0,
-                           hpipm_mode="SPEED", retry_in_streak=False)
+                           hpipm_mode="SPEED", retry_in_streak=False,
+                           retry_rti_steps=1)
             self.filters = [SafetyFilter(self.params, config=pc) for _ in range(n)]
             f0 = self.filters[0]
             # the farthest the ship gets over the horizon plus the clearance it needs

@@ -137,8 +137,18 @@ def test_selection_among_certified_candidates_colreg_then_comfort_then_least_cha
 
 
 @pytest.mark.parametrize("hull", [cybership2, cybership2_full_scale])
-def test_stage_n_asks_the_solver_what_certification_asks(hull):
-    from asvtwin.control import CircleObstacles
+@pytest.mark.parametrize("d_planar_share", [0.0, 0.05])
+def test_stage_n_asks_the_solver_what_certification_asks(hull, d_planar_share):
+    """The OCP's stage-N constraints, evaluated on end states from stopped to fast,
+    against the certification's stage-N margins: equal (less the planning tolerance) at
+    the warm start's end speed, never less conservative elsewhere (the tangent of
+    √V_N), and a moving vessel asks d_safe only. The solver thus trades ending slower
+    against ending farther from static obstacles as its plan is judged. With and
+    without a disturbance that halves the braking credit."""
+    from asvtwin.control import CircleObstacles, CoastSegments
+    from asvtwin.control.backends.ocp import margin_scale, terminal_constraints
+    from asvtwin.control.obstacles import stage_circles
+    from asvtwin.control.slots import MIN_ROOT_V
 
     p = hull()
     psf = SafetyFilter(p, config=PsfConfig(backend="casadi-ipopt", max_iter=5))
@@ -147,18 +157,45 @@ def test_stage_n_asks_the_solver_what_certification_asks(hull):
     psf.backend = spy
     x, tgt = _head_on(psf, offset_east=0.0)
     rock = CircleObstacles([[6.0 * L, -2.0 * L]], [0.5 * L])
-    psf.filter(x, [float(psf.u_ub[0]), 0.0, 0.0], [rock, tgt], t_s=0.0)
+    quay = CoastSegments([[4.0 * L, 3.0 * L, 12.0 * L, 3.0 * L]])
+    d_hat = np.array([d_planar_share * float(psf.u_ub[0] - psf.u_lb[0]), 0.0, 0.0])
+    obstacles = [rock, tgt, quay]
+    psf.filter(x, [float(psf.u_ub[0]), 0.0, 0.0], obstacles, d_hat, t_s=0.0)
     assert spy.P
+    spec = spy.spec
+    h_N = terminal_constraints(spec)
+    cert = psf._cert
+    assert cert.credit_factor == pytest.approx(1.0 - d_planar_share / 0.1)
+    centres, radii, segs = stage_circles(obstacles, psf.config.N)
+    radii[-1, 1] -= psf.d_f_m  # as the filter gives a moving circle at stage N
+    k0 = 4 + 3 * spec.n_circles + 4 * spec.n_segments
+    kappa = cert.credit_factor * psf.d_f_m
     P_f = psf.terminal_set.P_f
+    rng = np.random.default_rng(3)
     for P, xg in spy.P:
-        nu = xg[-1, 3:]
-        root = math.sqrt(min(float(nu @ P_f @ nu), 1.0))
-        extra = psf.d_f_m * root  # no disturbance: the full braking credit
-        assert P[-1, 3] == pytest.approx(psf.d_safe_m + extra + psf.certify_tol_m)
         assert P[0, 3] == pytest.approx(psf.d_safe_m + psf.certify_tol_m)
-        # the rock (slot 0) keeps its radius; the vessel (slot 1) asks d_safe only at N
-        assert P[-1, 4 + 2] == pytest.approx(0.5 * L)
-        assert P[-1, 4 + 3 + 2] == pytest.approx(0.5 * L - extra)
+        assert P[-1, k0 + 1: k0 + 3].tolist() == [1.0, 0.0]  # the rock, the vessel
+        nu_g = xg[-1, 3:]
+        s = min(max(math.sqrt(float(nu_g @ P_f @ nu_g)), MIN_ROOT_V), 1.0)
+        for k in range(21):
+            pos = np.array([rng.uniform(0, 10 * L), rng.uniform(-4 * L, 4 * L)])
+            nu = rng.uniform(-1, 1, 3) * psf.nu_max * rng.choice([0.02, 0.3, 1.0])
+            if k == 0:  # at the tangent point: exact
+                nu = nu / math.sqrt(float(nu @ P_f @ nu)) * s
+            X = np.tile(np.concatenate([pos, [0.0], nu]), (psf.config.N + 1, 1))
+            margins, _, term, _ = cert.margins(X, centres, radii, segs)
+            h = np.asarray(h_N(X[-1], P[-1])).ravel()
+            V = 1.0 - term
+            more = kappa * (s / 2 + V / (2 * s) - math.sqrt(min(V, 1.0)))
+            assert more >= -1e-9
+            if k == 0:
+                assert more == pytest.approx(0.0, abs=1e-6 * L)
+            # slots (margins in model-scale metres): the rock, the vessel, dummies; the
+            # quay, dummies; the ellipsoid
+            got = margin_scale(spec) * np.array([h[0], h[1], h[spec.n_circles]])
+            want = margins[-1] - psf.certify_tol_m - np.array([more, 0.0, more])
+            assert got == pytest.approx(want, abs=1e-4), (pos, nu)  # |·| smoothing
+            assert h[-1] == pytest.approx(term)
 
 
 @pytest.mark.parametrize("hull", [cybership2, cybership2_full_scale])

@@ -82,6 +82,22 @@ def test_filter_through_a_quick_subset(hull):
 
 
 @pytest.mark.parametrize("hull", [cybership2, cybership2_full_scale])
+def test_the_ship_rounds_a_headland_that_reaches_across_its_route(hull):
+    """The route runs 1 m (model scale) inside a headland's tip. Before stage N's
+    braking credit was part of the OCP the solver ended its plans moving beside the
+    shore, where the certification asks d_safe + d_f √V_N, so no plan was certified:
+    the ship lay stopped 1.85 m from the headland for the last 170 s (model scale: 377
+    fallbacks; full scale: 53) and never reached the goal, on the RTI backend."""
+    p = hull()
+    psf = SafetyFilter(p, config=PsfConfig(backend=available_backends()[0]))
+    case = next(c for c in encounter_cases(include=("coast",)) if c.name == "coast_headland")
+    r = run_encounter(case, p, psf)
+    _check([r], psf.d_safe_m)
+    assert r.goal_reached
+    assert sum(r.fallbacks.values()) <= 0.05 * r.calls, r.fallbacks  # measured 8 and 9
+
+
+@pytest.mark.parametrize("hull", [cybership2, cybership2_full_scale])
 def test_comfort_pass_through_keeps_the_avoidance_gentle(hull):
     """With comfort_pass_through the two quick vessel encounters turn within 1.3x the
     comfort bound (measured 0.57-1.12x; without it 1.33x and 1.52x at full scale)."""

@@ -34,7 +34,9 @@ def test_safe_input_passes_unchanged(psf):
 def test_unsafe_input_is_corrected_and_explained(psf):
     psf.reset()
     x = np.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.0])
-    wall = CircleObstacles([[13.0, 0.3]], [3.0])
+    # 10 m ahead: at 13 m the solver's plan keeps full ahead for its first stage and
+    # certifies it (no intervention needed since stage N's braking credit is in the OCP)
+    wall = CircleObstacles([[10.0, 0.3]], [3.0])
     res = psf.filter(x, FULL_AHEAD, wall, t_s=0.0)
     assert res.fallback == "none"
     assert res.intervened
@@ -272,3 +274,32 @@ def test_two_filters_in_two_threads_share_the_solver_safely(params, default_back
     for t in threads:
         t.join()
     assert not errors, errors
+
+
+def test_a_retry_takes_more_rti_steps_and_gives_them_back(params):
+    """An uncertified SQP-RTI answer is retried with up to ``retry_rti_steps`` steps; the
+    shared backend's own setting is restored afterwards (and one step stays one step
+    with ``retry_rti_steps=1``, the twin's and the RL world's setting)."""
+    if "acados" not in available_backends():
+        pytest.skip("the acados extra is not installed")
+    x = np.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.0])
+    wall = CircleObstacles([[10.0, 0.3]], [3.0])
+    for retry_steps, expected in ((3, {1, 3}), (1, {1})):
+        psf = SafetyFilter(params, config=PsfConfig(backend="acados",
+                                                    retry_rti_steps=retry_steps))
+        b = psf.backend
+        seen: list[int] = []
+        inner = b.solve
+
+        def solve(*a, _inner=inner, _b=b, _seen=seen):
+            _seen.append(_b.rti_steps)
+            return _inner(*a)
+
+        b.solve = solve
+        try:
+            psf.reset()
+            psf.filter(x, FULL_AHEAD, wall, t_s=0.0)
+        finally:
+            del b.solve
+        assert set(seen) == expected, seen
+        assert b.rti_steps == 1

@@ -21,8 +21,18 @@ inputs are hard.
 
 Stage parameters ``p_k`` (one vector per stage, ``(N+1, n_p)``) carry everything that
 changes between calls, so a solver is built once: ``[d̂ (3), clearance (1), circles
-(3 m: north, east, radius), segments (4 s: n0, e0, n1, e1)]``. Unused obstacle slots
-hold far-away dummies (:func:`dummy_parameters`), never ±inf or 1e9 (an acados pitfall).
+(3 m: north, east, radius), segments (4 s: n0, e0, n1, e1), a (1), static (m)]``. The last
+two are read at stage N only. There eq. (f) has the braking credit of
+:mod:`asvtwin.control.certification`: a plan ending at V_N = ν_Nᵀ P_f ν_N ≤ 1 needs
+d_safe + d_f (1 − c) + c d_f √V_N of room from static obstacles and the coast. The OCP
+asks its tangent at the warm start's V_N = s² (an upper bound, exact there): stage N's
+clearance holds d_safe + d_f (1 − c) + c d_f s / 2 and the constraint subtracts a·V_N,
+a = c d_f / (2 s), from a static obstacle's margin (``static`` is 1 or 0 per circle slot).
+So the solver trades ending farther away against ending slower as its plan is judged (a
+requirement fixed from the warm start's end speed let it end moving beside a shore and
+fail certification on every call); the tangent, not √V_N itself, because the RTI
+backend's single linearisation of √V_N overshot and oscillated between calls.
+Unused obstacle slots hold far-away dummies (:func:`dummy_parameters`), never ±inf or 1e9 (an acados pitfall).
 """
 
 from __future__ import annotations
@@ -54,6 +64,11 @@ __all__ = [
 SMOOTH_ABS_EPS = 1e-6
 #: Unused obstacle slots sit this many ship lengths away from the own ship.
 DUMMY_DISTANCE_FACTOR = 200.0
+#: What changes the generated code beyond the spec: part of every cache key.
+FORMULATION = "stage N: braking credit tangent a V_N with static flags; Froude margins"
+#: The hull length whose metres the solver's obstacle margins are counted in (CyberShip
+#: II's): see :func:`margin_scale`.
+MARGIN_REFERENCE_LENGTH_M = 1.255
 
 
 @dataclass(frozen=True)
@@ -104,7 +119,7 @@ class OcpSpec:
     @property
     def n_p(self) -> int:
         """Length of one stage's parameter vector."""
-        return 4 + 3 * self.n_circles + 4 * self.n_segments
+        return 5 + 4 * self.n_circles + 4 * self.n_segments
 
     @property
     def n_h(self) -> int:
@@ -122,8 +137,10 @@ class OcpSpec:
         return np.asarray(self.P_f, dtype=float).reshape(3, 3)
 
     def key(self) -> str:
-        """Stable hash of the spec (cache key for generated code)."""
+        """Stable hash of the spec and of the formulation (cache key for generated
+        code)."""
         blob = json.dumps(asdict(self), sort_keys=True, default=float).encode()
+        blob += FORMULATION.encode()
         blob += ca.CasadiMeta.version().encode()
         return hashlib.sha256(blob).hexdigest()[:16]
 
@@ -213,24 +230,44 @@ def _obstacle_margins(x: ca.SX, pk: ca.SX, n_circles: int, n_segments: int) -> c
     return ca.vertcat(*out) if out else ca.SX(0, 1)
 
 
+def margin_scale(spec: OcpSpec) -> float:
+    """What the solver's obstacle margins are divided by: the hull's Froude scale
+    λ = L / 1.255 m, so that they count model-scale metres at every hull size.
+
+    In metres, an 88 m hull's margins are ~70 times the model's while its cost is the
+    same (inputs scaled to O(1)): the QP's L1 slack penalty ρ per metre was then as
+    strong against a metre of a 175 m clearance as against a metre of a 2.5 m one, and
+    HPIPM stopped at its iteration limit on 36 % of the twin's solves among 50 vessels
+    (900 s); with the margins in model-scale metres 3 %. At model scale nothing
+    changes."""
+    return max(spec.vessel.length / MARGIN_REFERENCE_LENGTH_M, 1e-9)
+
+
 def path_constraints(spec: OcpSpec) -> ca.Function:
     """``h(x, p) >= 0`` (soft): obstacle margins, eq. (e), for stages 1..N-1."""
     x = ca.SX.sym("x", 6)
     pk = ca.SX.sym("p", spec.n_p)
-    h = _obstacle_margins(x, pk, spec.n_circles, spec.n_segments)
+    h = _obstacle_margins(x, pk, spec.n_circles, spec.n_segments) / margin_scale(spec)
     return ca.Function("h_path", [x, pk], [h], ["x", "p"], ["h"])
 
 
 def terminal_constraints(spec: OcpSpec) -> ca.Function:
-    """``h_N(x, p) >= 0`` (soft): margins with clearance d_safe + d_f, eq. (f), and the
-    terminal ellipsoid 1 − ν_Nᵀ P_f ν_N, eq. (g)."""
+    """``h_N(x, p) >= 0`` (soft): obstacle margins at stage N, eq. (f) with the braking
+    credit (static obstacles and the coast ask a·V_N more than the stage's clearance,
+    see the module docstring), and the terminal ellipsoid 1 − V_N, eq. (g)."""
     x = ca.SX.sym("x", 6)
     pk = ca.SX.sym("p", spec.n_p)
     h = _obstacle_margins(x, pk, spec.n_circles, spec.n_segments)
     nu = x[3:6]
+    V = ca.mtimes([nu.T, ca.DM(spec.P_f_matrix), nu])
+    k0 = 4 + 3 * spec.n_circles + 4 * spec.n_segments
+    if spec.n_circles + spec.n_segments:
+        static = ca.vertcat(*[pk[k0 + 1 + i] for i in range(spec.n_circles)],
+                            ca.DM.ones(spec.n_segments))
+        h = h - pk[k0] * V * static
+    h = h / margin_scale(spec)
     # eq. (OCP)(g): terminal ellipsoid ν_Nᵀ P_f ν_N ≤ 1
-    g = 1.0 - ca.mtimes([nu.T, ca.DM(spec.P_f_matrix), nu])
-    return ca.Function("h_term", [x, pk], [ca.vertcat(h, g)], ["x", "p"], ["h"])
+    return ca.Function("h_term", [x, pk], [ca.vertcat(h, 1.0 - V)], ["x", "p"], ["h"])
 
 
 def input_scale(u_lb: ArrayLike, u_ub: ArrayLike) -> NDArray[np.float64]:
