@@ -200,13 +200,10 @@ def test_the_trained_policy_behind_the_filter_passes(name):
 #: 2026-12-01 options): name -> (the criterion or criteria missed, reason). Pinned as strict expected
 #: failures of the full run: each must miss only that criterion, with no contact; a fix
 #: turns the xfail into a failure, to be updated here.
-KNOWN_MISSES = {
-    "multi_vessel": ("goal_reached",
-                     ("route not completed: after giving way ~1 km east the LOS return "
-                     "runs along a faster vessel's wake and the safety filter holds the "
-                     "ship behind its grown clearance circles (fallbacks from ~660 s); "
-                     "1.2 km short of the goal at the end (2026-11-30, and 2026-12-01 with a "
-                     "45° bounded return)")),
+KNOWN_MISSES: dict[str, tuple[str | tuple[str, ...], str]] = {
+    # "multi_vessel" missed its route here from 2026-11-30 until the safety filter's
+    # stage-N braking credit entered the OCP (2026-12-02): the filter held the ship
+    # behind a faster vessel's grown clearance circles, 1.2 km short of the goal
 }
 
 
