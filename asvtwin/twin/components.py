@@ -48,6 +48,7 @@ from asvtwin.tracking import (
     fit_ellipses,
     predictions_for_safety,
 )
+from asvtwin.tracking.turning import TurnRateEstimator, constant_turn_positions
 from asvtwin.vessel import VesselParams
 
 __all__ = ["AisInput", "DisturbanceEstimator", "FilterStage", "Perception", "tracker_config"]
@@ -276,6 +277,10 @@ class FilterStage:
         self.calls = 0
         self.interventions = 0
         self.fallbacks: dict[str, int] = {}
+        #: turn rates of the tracks from their course history: a turning track is given
+        #: to the filter twice, on its straight (CV) path and on its constant-turn arc
+        self.turns = TurnRateEstimator()
+        self.turning_tracks = 0  # at the last call
 
     def reset(self) -> None:
         """Forget the last plan and the warm start (the solver itself is kept)."""
@@ -294,7 +299,9 @@ class FilterStage:
         (2.45). The filter takes a hull radius plus a covariance per stage; the clearance is
         passed as the isotropic covariance (σ_eff² I, σ_eff = (clearance − hull)/κ) whose
         95 % inflation gives it back exactly. Tracks keep their ids ("track 2" in the
-        filter's explanation)."""
+        filter's explanation). A track whose course turns steadily
+        (:class:`~asvtwin.tracking.turning.TurnRateEstimator`) is given twice: on its CV
+        path and on its constant-turn arc, with the same clearance."""
         obs: list[MovingObstacles | CoastSegments] = []
         confirmed = tracks.is_confirmed  # (the rows predictions_for_safety keeps)
         if confirmed.any():
@@ -308,14 +315,28 @@ class FilterStage:
                 hull = np.where(np.isnan(semi), self.hull_radius_m, semi)
                 gap = np.min(np.hypot(pos[..., 0] - x[0], pos[..., 1] - x[1]), axis=1)
                 keep = gap < self.coast_radius_m + sp.clearance_radius_m.max(axis=1)
+                rate = self.turns.update(t_s, sp.track_ids, sp.velocity)
                 if keep.any():
                     sig = np.maximum(sp.clearance_radius_m[keep] - hull[keep, None],
                                      0.0) / self._kappa
                     cov = sig[..., None, None] ** 2 * np.eye(2)
+                    ids = tuple(int(i) for i in sp.track_ids[keep])
                     obs.append(MovingObstacles(
                         positions=pos[keep], radii=hull[keep], covariances=cov,
-                        confidence=self.confidence,
-                        ids=tuple(int(i) for i in sp.track_ids[keep])))
+                        confidence=self.confidence, ids=ids))
+                    turning = rate[keep] != 0.0
+                    if turning.any():  # the turn beside the straight path (tracking.turning)
+                        arc = constant_turn_positions(pos[keep][turning, 0],
+                                                      sp.velocity[keep][turning],
+                                                      rate[keep][turning], times - times[0],
+                                                      max_turn_rad=0.5 * math.pi)
+                        obs.append(MovingObstacles(
+                            positions=arc, radii=hull[keep][turning],
+                            covariances=cov[turning], confidence=self.confidence,
+                            ids=tuple(i for i, k in zip(ids, turning, strict=True) if k)))
+                        self.turning_tracks = int(turning.sum())
+                    else:
+                        self.turning_tracks = 0
         if self.land is not None:
             segs = self.land.segments_within(x[:2], self.coast_radius_m)
             if len(segs):

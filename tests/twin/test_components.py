@@ -76,3 +76,46 @@ def test_no_confirmed_tracks_no_moving_obstacles() -> None:
     tr = _tracks(0.0, 1.0)
     only_tentative = tr.select(np.array([False, False, True]))
     assert stage.obstacles(0.0, np.zeros(6), only_tentative) == []
+
+
+def _circling(t_s: float, rate: float, speed: float = 2.5) -> TrackSnapshot:
+    """One confirmed track at 400 m north, on course rate·t_s (from north, to starboard)."""
+    c = rate * t_s
+    mean = np.array([[400.0, 0.0, speed * math.cos(c), speed * math.sin(c)]])
+    return TrackSnapshot.build(
+        t_s=t_s, ids=[5], mmsi=[-1], mean=mean, cov=np.diag([4.0, 4.0, 0.01, 0.01])[None],
+        status=["confirmed"], semi_axes_m=[[30.0, 8.0]], last_update_s=[t_s],
+        updated_lidar=[True], updated_ais=[False], lidar_only_mean=mean, ais_only_mean=mean,
+        counters={})
+
+
+def test_a_turning_track_is_given_on_its_arc_beside_its_straight_path() -> None:
+    """A vessel circling at 0.8°/s (the benchmark scene's loop that hit the own ship while
+    its CV prediction ran off along the tangent): after 10 s of course history the filter
+    gets it twice, with one id: on the CV line and on the constant-turn arc (ending after
+    90°); a vessel on a steady course stays a single obstacle."""
+    from asvtwin.tracking.turning import constant_turn_positions
+
+    stage = FilterStage(cybership2_full_scale(), None)
+    w = math.radians(0.8)
+    obs: list = []
+    for k in range(30):  # the filter's 2 Hz over 14.5 s
+        t = 0.5 * k
+        obs = stage.obstacles(t, np.zeros(6), _circling(t, w))
+    assert len(obs) == 2 and stage.turning_tracks == 1
+    cv, arc = obs
+    assert cv.ids == arc.ids == (5,)
+    tr = _circling(14.5, w)
+    taus = stage.dt_s * np.arange(stage.N + 1)
+    np.testing.assert_allclose(cv.positions[0], tr.mean[0, :2] + taus[:, None] * tr.mean[0, 2:])
+    want = constant_turn_positions(tr.mean[:, :2], tr.mean[:, 2:], [w], taus,
+                                   max_turn_rad=0.5 * math.pi)[0]
+    np.testing.assert_allclose(arc.positions[0], want, atol=0.05 * 2.5 * taus[-1])
+    # the arc really bends (90° in 112 s, then straight on), far from the straight line
+    assert np.hypot(*(arc.positions[0, -1] - cv.positions[0, -1])) > 300.0
+    np.testing.assert_allclose(arc.effective_radii(), cv.effective_radii())
+    # a steady course: one obstacle
+    stage = FilterStage(cybership2_full_scale(), None)
+    for k in range(30):
+        obs = stage.obstacles(0.5 * k, np.zeros(6), _circling(0.5 * k, 0.0))
+    assert len(obs) == 1 and stage.turning_tracks == 0
