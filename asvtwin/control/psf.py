@@ -605,8 +605,10 @@ class SafetyFilter:
             else:
                 words.append("no intervention; no obstacle known")
         else:
+            end_clear = self.d_safe_m + self._cert.terminal_requirement(first[0][-1, 3:])
             words.append(describe_cause(x, margins_L, term_L, labels, moving, centres, radii,
-                                        segs, dt, self.d_safe_m, self.d_f_m, TERM_TOL))
+                                        segs, dt, self.d_safe_m, self.d_f_m, TERM_TOL,
+                                        end_clear_m=end_clear))
             words.append(describe_change(uL, u0, self.u_lb, self.u_ub))
         if fb is not Fallback.NONE:
             best_alt = ", ".join(f"{k} {c:.1f} m" for k, _, c, _ in scored[:4])

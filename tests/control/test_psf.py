@@ -1,5 +1,8 @@
 from __future__ import annotations
 
+import math
+import re
+
 import numpy as np
 import pytest
 
@@ -303,3 +306,20 @@ def test_a_retry_takes_more_rti_steps_and_gives_them_back(params):
             del b.solve
         assert set(seen) == expected, seen
         assert b.rti_steps == 1
+
+
+def test_the_explanation_states_the_end_clearance_at_the_plans_end_speed(psf):
+    """A rock that u_L cannot stop short of: the explanation gives what the plan's end
+    must keep at the end speed of u_L's plan (d_safe + d_f √V_N with the braking credit),
+    between d_safe and d_safe + d_f, as certified, not the full d_safe + d_f."""
+    psf.reset()
+    x = np.array([0.0, 0.0, 0.0, 0.3, 0.0, 0.0])
+    res = psf.filter(x, FULL_AHEAD, CircleObstacles([[6.0, 0.0]], [1.0]), t_s=0.0)
+    m = re.search(r"at its end speed the plan must end ≥ ([\d.]+) m clear", res.explanation)
+    assert m, res.explanation
+    end = float(m.group(1))
+    X = psf.rollout(x, np.vstack([FULL_AHEAD, np.zeros((psf.config.N - 1, 3))]))
+    V = float(X[-1, 3:] @ psf.terminal_set.P_f @ X[-1, 3:])
+    want = psf.d_safe_m + psf.d_f_m * math.sqrt(min(V, 1.0))
+    assert end == pytest.approx(want, abs=0.05)
+    assert psf.d_safe_m < end < psf.d_safe_m + psf.d_f_m
