@@ -92,19 +92,16 @@ def describe_obstacle(j: int, x: _F8, labels: list[str], moving: NDArray[np.bool
 def describe_cause(x: _F8, margins_L: _F8, term_L: float, labels: list[str],
                    moving: NDArray[np.bool_], centres: _F8, radii: _F8, segs: _F8,
                    dt_s: float, d_safe_m: float, d_f_m: float, term_tol: float,
-                   end_clear_m: float | None = None) -> str:
+                   end_clear_m: float) -> str:
     """Why u_L was not kept: the binding constraint of the plan that starts with it
     (margins ``margins_L`` (N+1, m + k) [m], terminal margin ``term_L``).
     ``end_clear_m``: what that plan's end must keep from a static obstacle at its end
-    speed (d_safe + d_f √V_N with the braking credit; default d_safe + d_f)."""
+    speed (d_safe + d_f √V_N with the braking credit)."""
     N = margins_L.shape[0] - 1
     if margins_L.shape[1] and float(margins_L[1:].min()) < 0:
         k_c, j_c = np.unravel_index(int(np.argmin(margins_L[1:])), margins_L[1:].shape)
         cause = describe_obstacle(int(j_c), x, labels, moving, centres, radii, segs, dt_s)
         if k_c + 1 == N and margins_L[N, j_c] + d_f_m >= 0:
-            if end_clear_m is None:
-                return (f"{cause}; u_L leaves no room to stop: the plan must end "
-                        f"≥ d_safe + d_f = {d_safe_m + d_f_m:.1f} m clear")
             return (f"{cause}; u_L leaves no room to stop: at its end speed the plan must "
                     f"end ≥ {end_clear_m:.1f} m clear (d_safe {d_safe_m:.1f} m + braking)")
         return f"{cause}; u_L comes within d_safe in {(k_c + 1) * dt_s:.0f} s"

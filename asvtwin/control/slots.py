@@ -33,7 +33,6 @@ log = logging.getLogger("asvtwin.control.psf")
 MIN_ROOT_V = 0.1
 
 
-
 class SolverSlots:
     """The stage-parameter buffer (N+1, n_p) of one filter, rewritten every call:
     ``[d̂ (3), clearance (1), circles (3 n_circles), segments (4 n_segments), a (1),
@@ -46,8 +45,7 @@ class SolverSlots:
         self.P = np.zeros((N + 1, spec.n_p))
         # the solver plans with the certification tolerance as margin (eq. (e)/(f))
         self.P[:, 3] = cert.clear + cert.tol_m
-        self._k0 = 4 + 3 * nc + 4 * spec.n_segments  # a, then the static flags
-        self._used = 0
+        self._k0 = spec.credit_index  # a, then the static flags
         self.circ = self.P[:, 4: 4 + 3 * nc].reshape(N + 1, nc, 3)
         if not np.shares_memory(self.circ, self.P):  # pragma: no cover - numpy layout
             raise AssertionError("the circle slots must be a view of the stage parameters")
@@ -104,13 +102,15 @@ class SolverSlots:
         self._moving[:] = False
         if used and moving is not None:
             self._moving[:used] = moving[ci] if m > nc else moving
-        self._used = used
+        # stage N's credit applies to the static circles' slots (and every segment)
+        P[-1, self._k0 + 1:] = 0.0
+        P[-1, self._k0 + 1: self._k0 + 1 + used] = ~self._moving[:used]
         self.set_terminal(nu_end)
         return P, ci, si
 
     def set_terminal(self, nu_end: _F8 | None) -> None:
-        """Stage N's clearance, the slope a of its credit term and the static flags, for
-        a warm start ending at velocity ``nu_end`` (None: at rest).
+        """Stage N's clearance and the slope a of its credit term, for a warm start
+        ending at velocity ``nu_end`` (None: at rest).
 
         The solver is asked what the certification asks: d_safe + d_f (1 − c) +
         c d_f √V_N beyond the static obstacles and the coast (the braking credit, faded
@@ -123,14 +123,11 @@ class SolverSlots:
         requirement fixed from the warm start's end speed the solver ended moving beside
         a shore and its plans failed certification at stage N (a model-scale ship
         stopped 2 m from a headland stayed there for 170 s, both backends)."""
-        c, P, k0, nc, used = self.cert, self.P, self._k0, self.spec.n_circles, self._used
+        c, P = self.cert, self.P
         credit = c.credit_factor * c.d_f_m
         V = 0.0 if nu_end is None else float(nu_end @ c.P_f @ nu_end)
         s = min(max(math.sqrt(max(V, 0.0)), MIN_ROOT_V), 1.0)
         base = c.d_f_m - credit + 0.5 * credit * s  # what stage N asks beyond d_safe at V = 0
         P[-1, 3] = c.d_safe_m + base + c.tol_m
-        P[-1, k0] = 0.5 * credit / s
-        static = np.zeros(nc)
-        static[:used] = ~self._moving[:used]
-        P[-1, k0 + 1: k0 + 1 + nc] = static
+        P[-1, self._k0] = 0.5 * credit / s
         self.circ[-1, :, 2] = self._r_end + np.where(self._moving, c.d_f_m - base, 0.0)

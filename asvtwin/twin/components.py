@@ -263,7 +263,8 @@ class FilterStage:
         self.land = scene.land if scene is not None else None
         # one SQP-RTI step per retry: among the benchmark's 50 vessels that do not give
         # way, three steps per retry cost 57 % more wall time over 900 s for 7 % fewer
-        # fallbacks (docs/psf.md, "Stage N's braking credit in the OCP")
+        # fallbacks (an intermediate version of the OCP; docs/psf.md, "Stage N's braking
+        # credit in the OCP")
         self.psf = SafetyFilter(params, config=PsfConfig(backend=backend, retry_rti_steps=1))
         cfg = self.psf.config
         self.N, self.dt_s = cfg.N, cfg.dt_s
@@ -280,7 +281,7 @@ class FilterStage:
         #: turn rates of the tracks from their course history: a turning track is given
         #: to the filter twice, on its straight (CV) path and on its constant-turn arc
         self.turns = TurnRateEstimator()
-        self.turning_tracks = 0  # at the last call
+        self.turning_tracks = 0  # given on their arc at the last call
 
     def reset(self) -> None:
         """Forget the last plan and the warm start (the solver itself is kept)."""
@@ -303,6 +304,7 @@ class FilterStage:
         (:class:`~asvtwin.tracking.turning.TurnRateEstimator`) is given twice: on its CV
         path and on its constant-turn arc, with the same clearance."""
         obs: list[MovingObstacles | CoastSegments] = []
+        self.turning_tracks = 0
         confirmed = tracks.is_confirmed  # (the rows predictions_for_safety keeps)
         if confirmed.any():
             times = max(t_s, tracks.t_s) + self.dt_s * np.arange(self.N + 1)
@@ -335,8 +337,6 @@ class FilterStage:
                             covariances=cov[turning], confidence=self.confidence,
                             ids=tuple(i for i, k in zip(ids, turning, strict=True) if k)))
                         self.turning_tracks = int(turning.sum())
-                    else:
-                        self.turning_tracks = 0
         if self.land is not None:
             segs = self.land.segments_within(x[:2], self.coast_radius_m)
             if len(segs):

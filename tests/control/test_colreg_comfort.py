@@ -168,7 +168,7 @@ def test_stage_n_asks_the_solver_what_certification_asks(hull, d_planar_share):
     assert cert.credit_factor == pytest.approx(1.0 - d_planar_share / 0.1)
     centres, radii, segs = stage_circles(obstacles, psf.config.N)
     radii[-1, 1] -= psf.d_f_m  # as the filter gives a moving circle at stage N
-    k0 = 4 + 3 * spec.n_circles + 4 * spec.n_segments
+    k0 = spec.credit_index
     kappa = cert.credit_factor * psf.d_f_m
     P_f = psf.terminal_set.P_f
     rng = np.random.default_rng(3)

@@ -32,7 +32,8 @@ So the solver trades ending farther away against ending slower as its plan is ju
 requirement fixed from the warm start's end speed let it end moving beside a shore and
 fail certification on every call); the tangent, not √V_N itself, because the RTI
 backend's single linearisation of √V_N overshot and oscillated between calls.
-Unused obstacle slots hold far-away dummies (:func:`dummy_parameters`), never ±inf or 1e9 (an acados pitfall).
+Unused obstacle slots hold far-away dummies (:func:`dummy_parameters`), never ±inf or 1e9
+(an acados pitfall).
 """
 
 from __future__ import annotations
@@ -119,7 +120,13 @@ class OcpSpec:
     @property
     def n_p(self) -> int:
         """Length of one stage's parameter vector."""
-        return 5 + 4 * self.n_circles + 4 * self.n_segments
+        return self.credit_index + 1 + self.n_circles
+
+    @property
+    def credit_index(self) -> int:
+        """Index in a stage's parameters of stage N's credit slope a; the circle slots'
+        static flags follow it."""
+        return 4 + 3 * self.n_circles + 4 * self.n_segments
 
     @property
     def n_h(self) -> int:
@@ -260,7 +267,7 @@ def terminal_constraints(spec: OcpSpec) -> ca.Function:
     h = _obstacle_margins(x, pk, spec.n_circles, spec.n_segments)
     nu = x[3:6]
     V = ca.mtimes([nu.T, ca.DM(spec.P_f_matrix), nu])
-    k0 = 4 + 3 * spec.n_circles + 4 * spec.n_segments
+    k0 = spec.credit_index
     if spec.n_circles + spec.n_segments:
         static = ca.vertcat(*[pk[k0 + 1 + i] for i in range(spec.n_circles)],
                             ca.DM.ones(spec.n_segments))
