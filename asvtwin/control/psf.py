@@ -178,8 +178,8 @@ class SafetyFilter:
     def _make_backend(self, cfg: PsfConfig) -> Backend:
         name = cfg.backend if cfg.backend != "auto" else available_backends()[0]
         opts: dict[str, object] = (
-            {"rti_steps": cfg.rti_steps, "hpipm_mode": cfg.hpipm_mode} if name == "acados"
-            else {"max_iter": cfg.max_iter})
+            {"rti_steps": cfg.rti_steps, "hpipm_mode": cfg.hpipm_mode, "qp_tol": cfg.qp_tol}
+            if name == "acados" else {"max_iter": cfg.max_iter})
         try:
             return make_backend(name, self.spec, **opts)
         except SolverError as exc:

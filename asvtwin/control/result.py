@@ -93,6 +93,15 @@ class PsfConfig:
         ``"ROBUST"``); other backends ignore it. ``"SPEED"``: ~30 % less CPU per solve,
         same model-scale encounter results, more fallbacks at full scale (0.95 → 4.2 %
         of calls): the RL world (model scale) uses it, the default stays ``"BALANCE"``.
+    qp_tol : float or None
+        The acados backend's HPIPM stopping tolerance (stationarity, equality,
+        inequality and complementarity residuals alike; the QP is in the solver's scaled
+        inputs and model-scale metres); other backends ignore it. None: the mode's own
+        (BALANCE: 1e-8), at which 6 % of the full-scale QPs in the twin's benchmark
+        scene stopped at HPIPM's iteration limit (100) and ended as failed solves; at
+        1e-4, 0 % of the same 2,453 recorded QPs. The twin's filter uses 1e-4 (1.09-1.33
+        times as fast there: docs/twin.md, "Speed"); the default stays None because
+        the model-scale steered field of ``benchmarks/psf.py`` fell back more with it.
     colreg : bool
         Prefer the starboard side where COLREG rules 14, 15 and 17(c) expect it: the
         solver is warm-started from a starboard turn when a head-on or crossing vessel
@@ -131,6 +140,7 @@ class PsfConfig:
     retry_in_streak: bool = True
     retry_failed_solves: bool = False
     hpipm_mode: str = "BALANCE"
+    qp_tol: float | None = None
     colreg: bool = True
     comfort_pass_through: bool = False
 
@@ -152,7 +162,7 @@ class PsfConfig:
             ("gamma", len(self.gamma) == 3 and min(self.gamma) >= 0, "3 values >= 0"),
             ("hpipm_mode", self.hpipm_mode in _HPIPM_MODES, f"one of {_HPIPM_MODES}"),
         ]
-        for name in ("d_safe_m", "d_f_m", "terminal_r_max", "certify_tol_m"):
+        for name in ("d_safe_m", "d_f_m", "terminal_r_max", "certify_tol_m", "qp_tol"):
             v = getattr(self, name)
             checks.append((name, v is None or (math.isfinite(v) and v > 0), "None or > 0"))
         if self.nu_max is not None:

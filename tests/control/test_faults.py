@@ -368,6 +368,44 @@ def test_hpipm_mode_is_checked():
         PsfConfig(hpipm_mode="FAST")
 
 
+@pytest.mark.parametrize("bad", [0.0, -1e-4, float("nan"), float("inf")])
+def test_qp_tol_is_checked(bad):
+    with pytest.raises(ConfigError, match="qp_tol"):
+        PsfConfig(qp_tol=bad)
+
+
+@pytest.mark.skipif("acados" not in available_backends(), reason="acados not installed")
+def test_qp_tolerance_converges_a_qp_the_twin_recorded():
+    """A full-scale QP recorded in the twin's benchmark scene (50 extra vessels, seed 7;
+    tests/control/data/twin_hard_qp.npz: the state, u_L, the 51 x 133 stage parameters
+    and the warm start of one solve): at HPIPM's own BALANCE tolerance it stops at the
+    iteration limit (100) even from a reset solver, at ``qp_tol=1e-4`` (the twin's
+    setting) it converges, and the converged plan starts inside the actuator range. The
+    solver with a tolerance is built apart from the default one and carries it."""
+    from pathlib import Path
+
+    params = cybership2_full_scale()
+    default = SafetyFilter(params, config=PsfConfig(backend="acados")).backend
+    loose = SafetyFilter(params, config=PsfConfig(backend="acados", qp_tol=1e-4)).backend
+    assert loose is not default
+    opts = loose._solver.acados_ocp.solver_options  # type: ignore[attr-defined]
+    assert opts.qp_solver_tol_stat == opts.qp_solver_tol_comp == 1e-4
+    case = np.load(Path(__file__).parent / "data" / "twin_hard_qp.npz")
+    assert case["P"].shape == (default.spec.N + 1, default.spec.n_p), (
+        "the recorded QP no longer fits the OCP's parameters: re-record it")
+    args = (case["x0"], case["u_L"], case["P"], case["x_guess"], case["u_guess"])
+    default.reset()
+    stuck = default.solve(*args)
+    assert not stuck.success and "QP status 2" in stuck.status  # iteration limit
+    loose.reset()
+    done = loose.solve(*args)
+    assert done.success, done.status
+    iters = int(np.asarray(loose._solver.get_stats("qp_iter")).ravel()[-1])
+    assert iters < 100
+    lo, hi = np.asarray(default.spec.u_lb), np.asarray(default.spec.u_ub)
+    assert np.all(done.u >= lo - 1e-6) and np.all(done.u <= hi + 1e-6)
+
+
 @pytest.mark.skipif("acados" not in available_backends(), reason="acados not installed")
 def test_hpipm_speed_mode_is_its_own_solver_and_keeps_the_ship_clear(params, psf):
     """HPIPM's SPEED mode (the RL world's) is a separately built solver; its plans are

@@ -201,9 +201,16 @@ def test_the_trained_policy_behind_the_filter_passes(name):
 #: failures of the full run: each must miss only that criterion, with no contact; a fix
 #: turns the xfail into a failure, to be updated here.
 KNOWN_MISSES: dict[str, tuple[str | tuple[str, ...], str]] = {
-    # "multi_vessel" missed its route here from 2026-11-30 until the safety filter's
-    # stage-N braking credit entered the OCP (2026-12-02): the filter held the ship
-    # behind a faster vessel's grown clearance circles, 1.2 km short of the goal
+    # "multi_vessel" misses its route at some seeds and reaches it at others, with either
+    # HPIPM tolerance: the fishing boat ahead on the track (0.77 m/s against the own
+    # ship's 2.3) keeps the own ship ~514 m astern of it, because its 95 % clearance
+    # circle at the end of the 209 s horizon (hull + 2.45 sigma of a CV prediction) has a
+    # radius of ~430 m and the path follower never offsets far enough to pass it. Seeds
+    # 15 / 16 / 17: goal missed / reached / missed with the twin's QP tolerance 1e-4,
+    # reached / - / missed with HPIPM's default (2026-12-02); pinned at its own seed 15
+    "multi_vessel": ("goal_reached",
+                     ("the slow vessel ahead holds the own ship ~514 m astern (its grown "
+                      "clearance circle): the route is not finished in 1400 s")),
 }
 
 

@@ -163,10 +163,13 @@ class AcadosBackend:
         ``"ROBUST"``). ``"SPEED"`` cost about 30 % less CPU per solve in the RL world
         (model scale) with the same encounter-set results there, but more fallbacks at
         full scale (docs/psf.md, speed): the filter's default stays ``"BALANCE"``.
+    qp_tol : float or None
+        HPIPM's stopping tolerance on all four residuals (None: the mode's own, 1e-8 in
+        BALANCE). See :attr:`~asvtwin.control.PsfConfig.qp_tol`.
     """
 
     def __init__(self, spec: OcpSpec, *, rti_steps: int = 1, step_tol: float = 1e-3,
-                 hpipm_mode: str = "BALANCE") -> None:
+                 hpipm_mode: str = "BALANCE", qp_tol: float | None = None) -> None:
         acados = _setup_environment()
         from acados.acados_template import (  # type: ignore[import-not-found]
             AcadosModel,
@@ -258,6 +261,10 @@ class AcadosBackend:
             # (only a non-default mode enters the options, so the cache key of the
             # default solver, built before this option existed, stays the same)
             solver_options["hpipm_mode"] = hpipm_mode
+        if qp_tol is not None:  # (likewise: only a set tolerance enters the cache key)
+            for name in ("qp_solver_tol_stat", "qp_solver_tol_eq", "qp_solver_tol_ineq",
+                         "qp_solver_tol_comp"):
+                solver_options[name] = float(qp_tol)
         for name, value in solver_options.items():
             setattr(opts, name, value)
 
