@@ -264,7 +264,7 @@ class FilterStage:
         # one SQP-RTI step per retry: among the benchmark's 50 vessels that do not give
         # way, three steps per retry cost 57 % more wall time over 900 s for 7 % fewer
         # fallbacks (an intermediate version of the OCP; docs/psf.md, "Stage N's braking
-        # credit in the OCP"). HPIPM's tolerance 1e-4, not BALANCE's 1e-8: at 1e-8, 6 %
+        # credit in the OCP"). HPIPM's tolerance 1e-4, not BALANCE's own: with it, 6 %
         # of the full-scale QPs there stopped at the iteration limit and failed; 1e-4 ran
         # the twin 1.09-1.33 times as fast at seeds 7, 8, 9, with as many fallbacks
         # within run-to-run spread (docs/twin.md, "Speed")
