@@ -97,9 +97,9 @@ class PsfConfig:
         The acados backend's HPIPM stopping tolerance (stationarity, equality,
         inequality and complementarity residuals alike; the QP is in the solver's scaled
         inputs and model-scale metres); other backends ignore it. None: the mode's own
-        (in BALANCE a tight one: an explicit 1e-8 behaved alike), at which 6 % of the full-scale QPs in the twin's benchmark
-        scene stopped at HPIPM's iteration limit (100) and ended as failed solves; at
-        1e-4, 0 % of the same 2,453 recorded QPs. The twin's filter uses 1e-4 (1.09-1.33
+        (in BALANCE a tight one: an explicit 1e-8 behaved alike), at which 6 % of the
+        full-scale QPs in the twin's benchmark scene stopped at HPIPM's iteration limit
+        (100) and ended as failed solves; at 1e-4, 0 % of the same 2,453 recorded QPs. The twin's filter uses 1e-4 (1.09-1.33
         times as fast there: docs/twin.md, "Speed"); the default stays None because
         the model-scale steered field of ``benchmarks/psf.py`` fell back more with it.
     colreg : bool

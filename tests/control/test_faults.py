@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -382,8 +383,6 @@ def test_qp_tolerance_converges_a_qp_the_twin_recorded():
     iteration limit (100) even from a reset solver, at ``qp_tol=1e-4`` (the twin's
     setting) it converges, and the converged plan starts inside the actuator range. The
     solver with a tolerance is built apart from the default one and carries it."""
-    from pathlib import Path
-
     params = cybership2_full_scale()
     default = SafetyFilter(params, config=PsfConfig(backend="acados")).backend
     loose = SafetyFilter(params, config=PsfConfig(backend="acados", qp_tol=1e-4)).backend

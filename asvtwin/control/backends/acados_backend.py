@@ -164,8 +164,9 @@ class AcadosBackend:
         (model scale) with the same encounter-set results there, but more fallbacks at
         full scale (docs/psf.md, speed): the filter's default stays ``"BALANCE"``.
     qp_tol : float or None
-        HPIPM's stopping tolerance on all four residuals (None: the mode's own;
-        in BALANCE an explicit 1e-8 behaved alike). See :attr:`~asvtwin.control.PsfConfig.qp_tol`.
+        HPIPM's stopping tolerance on all four residuals (None: the mode's own; in
+        BALANCE an explicit 1e-8 behaved alike). See
+        :attr:`~asvtwin.control.PsfConfig.qp_tol`.
     """
 
     def __init__(self, spec: OcpSpec, *, rti_steps: int = 1, step_tol: float = 1e-3,
