@@ -22,6 +22,9 @@ from asvtwin.server import SyntheticFeed, create_app
 from asvtwin.twin.snapshot import decode, encode, json_schema
 
 LOCAL = ("127.0.0.1", 50000)
+#: A peer that is not this machine, for the access checks: Starlette's own default client
+#: name, not an address (TestClient calls the app in-process; nothing is resolved or sent)
+REMOTE = ("testclient", 4000)
 
 
 @pytest.fixture(scope="module")
@@ -122,14 +125,12 @@ def test_chunked_oversized_body_is_refused(client):
 
 def test_non_local_requests_need_the_token(feed):
     app = create_app(feed)  # no token: local only
-    with TestClient(app, base_url="http://127.0.0.1", client=("192.0.2.7", 4000)) as c:
+    with TestClient(app, base_url="http://127.0.0.1", client=REMOTE) as c:
         r = c.get("/api/info")
         assert r.status_code == 403 and "local-only" in r.json()["error"]
         assert c.post("/api/control/pause", json={}).status_code == 403
     app = create_app(feed, token="s3cret-token")
-    # TestClient calls the app in-process (no socket, no packet leaves the process); the
-    # 192.0.2.x addresses (RFC 5737 documentation range) only label the simulated peer.
-    with TestClient(app, base_url="http://192.0.2.1", client=("192.0.2.7", 4000)) as c:
+    with TestClient(app, base_url="http://127.0.0.1", client=REMOTE) as c:
         assert c.get("/api/info").status_code == 403
         assert c.get("/api/info", headers={"authorization": "Bearer wrong"}).status_code == 403
         assert c.get("/api/info", headers={"authorization": "Bearer s3cret-token"}).status_code == 200
