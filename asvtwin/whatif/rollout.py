@@ -101,7 +101,8 @@ class RolloutConfig:
     dt_s : float, optional
         Simulation step [s]; default 0.05 s·√(L / 1.255 m) (0.42 s for the 88 m hull).
     filter_period_s : float, optional
-        Period of the safety filter [s]; default the twin's default rate, 2 Hz (0.5 s).
+        Period of the safety filter [s]; default 0.5 s, the scenario schema's 2 Hz (the
+        default scene's twin asks its 88 m hull's filter at 0.25 Hz, once per plan stage).
     economy : bool
         Filter only within reach, and hold a certified answer for a plan stage (module
         docstring); False: the twin's full rate wherever the filter is on.

@@ -40,14 +40,17 @@ def test_default_world_at_10_hz_follows_the_20_hz_world() -> None:
     own20, tg20, s20 = _run(sc, 20.0, duration)
     d_own = np.hypot(*(own10 - own20).T)
     d_tg = np.hypot(tg10[..., 0] - tg20[..., 0], tg10[..., 1] - tg20[..., 1])
-    # measured: 0.02 m after 60 s, 2.4 m over 600 s (own ship, closed loop through the
-    # filter); 0.12 m for the targets
-    assert d_own.max() < (5.0 if full_run() else 0.5)
+    # measured: 0.02 m after 60 s, 17.4 m over 600 s (own ship, closed loop through the
+    # filter; 2.4 m while the filter ran at 2 Hz: a yaw moment held for the 4 s between
+    # the 0.25 Hz calls turns a small difference into a later switch of the rudder);
+    # 0.12 m for the targets
+    assert d_own.max() < (25.0 if full_run() else 0.5)
     assert d_tg.max() < 0.5
     # the ship moved: the agreement is not that of two ships at rest
     assert np.hypot(*(own20[-1] - own20[0])) > 100.0
     assert s10.collisions == s20.collisions == 0  # type: ignore[attr-defined]
     assert s10.groundings == s20.groundings == 0  # type: ignore[attr-defined]
     for name, d20 in s20.min_distance_targets_m.items():  # type: ignore[attr-defined]
-        assert abs(s10.min_distance_targets_m[name] - d20) < 5.0  # type: ignore[attr-defined]
+        # 2,302 against 2,318 m for the ferry over 600 s (the track difference above)
+        assert abs(s10.min_distance_targets_m[name] - d20) < 25.0  # type: ignore[attr-defined]
     assert s10.fallbacks == s20.fallbacks  # type: ignore[attr-defined]
