@@ -279,6 +279,7 @@ class FilterStage:
         reach = self.N * self.dt_s * float(self.psf.nu_max[0])
         self.coast_radius_m = reach + self.psf.d_safe_m + self.psf.d_f_m
         self.last: FilterResult | None = None
+        self.last_t_s = math.nan  # simulation time of the call that gave ``last``
         self.calls = 0
         self.interventions = 0
         self.fallbacks: dict[str, int] = {}
@@ -290,7 +291,7 @@ class FilterStage:
     def reset(self) -> None:
         """Forget the last plan and the warm start (the solver itself is kept)."""
         self.psf.reset()
-        self.last = None
+        self.last, self.last_t_s = None, math.nan
 
     def obstacles(self, t_s: float, x: _F8, tracks: TrackSnapshot
                   ) -> list[MovingObstacles | CoastSegments]:
@@ -353,7 +354,7 @@ class FilterStage:
         obs = self.obstacles(t_s, x, tracks)
         d = d_hat if np.isfinite(d_hat).all() else None
         res = self.psf.filter(x, u_L, obs, d, t_s=t_s)
-        self.last = res
+        self.last, self.last_t_s = res, float(t_s)
         self.calls += 1
         if res.intervened:
             self.interventions += 1

@@ -713,9 +713,11 @@ class Twin:
         f = self.filter
         horizon = (f.N * f.dt_s) if f is not None else 60.0 * math.sqrt(self.params.length / 1.255)
         pred_times = np.linspace(0.0, horizon, 7)
+        last = f.last if (f is not None and self.filter_enabled) else None
         filt = assemble.filter_part(
-            f.last if (f is not None and self.filter_enabled) else None,
-            enabled=self.filter_enabled, t_s=t, u_L=self.u_L, u_0=self.u_0,
+            last, enabled=self.filter_enabled,
+            t_s=f.last_t_s if (f is not None and last is not None) else t,
+            u_L=self.u_L, u_0=self.u_0,
             dt_s=f.dt_s if f else 0.0, d_safe_m=f.psf.d_safe_m if f else 0.0,
             calls=f.calls if f else 0, interventions=f.interventions if f else 0,
             fallbacks=sum(f.fallbacks.values()) if f else 0)

@@ -222,11 +222,14 @@ class ObserverState:
 class FilterState:
     """The predictive safety filter's answer at its last call.
 
-    ``u_L`` the learner's / controller's proposal and ``u_0`` the input let through
-    [N, N, Nm]; ``plan`` the planned positions (N+1, 2) [m] with ``plan_margin_m`` per
-    stage [m] (≥ 0 safe) and ``critical_stages`` the stages drawn red; ``plan_times_s``
-    the stage times ahead [s]; ``fallback``: ``none``, or the kind of checked fallback
-    used; ``explanation``: a sentence a navigator reads."""
+    ``t_s`` the simulation time of that call [s] (the snapshot's own time before the
+    first call; the answer and its u_0 are held until the next call, every
+    ``1 / rates.filter_hz`` s); ``u_L`` the learner's / controller's latest proposal and
+    ``u_0`` the input let through [N, N, Nm]; ``plan`` the planned positions (N+1, 2) [m]
+    with ``plan_margin_m`` per stage [m] (≥ 0 safe) and ``critical_stages`` the stages
+    drawn red; ``plan_times_s`` the stage times after ``t_s`` [s]; ``fallback``:
+    ``none``, or the kind of checked fallback used; ``explanation``: a sentence a
+    navigator reads."""
 
     enabled: bool = True
     t_s: float = float("nan")

@@ -68,3 +68,21 @@ def test_default_filter_at_its_rate_follows_the_2_hz_filter() -> None:
     assert abs(s_a.max_cte_m - s_b.max_cte_m) < 10.0  # type: ignore[attr-defined]
     # one call in eight: the same simulated time, an eighth of the filter's calls
     assert s_a.filter_calls * 8 == s_b.filter_calls  # type: ignore[attr-defined]
+
+
+def test_the_snapshot_dates_the_filter_answer_it_holds() -> None:
+    """Between 0.25 Hz calls the snapshot carries the answer of the last call: its
+    ``filter.t_s`` is that call's time and the plan's stage times count from it (at 2 Hz
+    a plan was at most 0.5 s old; now up to 4 s, ~9 m of the ship's way)."""
+    twin = Twin(default_scenario(), record_path=None)
+    seen = []
+    while twin.t_s < 9.0:
+        snap = twin.step()
+        if snap is not None:
+            seen.append((snap.t_s, snap.filter.t_s, snap.filter.plan_times_s[0]))
+    calls = {round(ft, 6) for _, ft, _ in seen}
+    assert calls == {0.0, 4.0, 8.0}
+    for t, ft, p0 in seen:
+        assert ft <= t + 1e-9 and t - ft < 4.0 + 1e-9
+        assert ft == max(c for c in calls if c <= t + 1e-9)
+        assert p0 == 0.0
