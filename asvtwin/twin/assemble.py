@@ -159,11 +159,12 @@ def tracks_part(tr: TrackSnapshot, t_s: float, own: _F8, pred_times_s: _F8, q: f
 
 def filter_part(res: FilterResult | None, *, enabled: bool, t_s: float, u_L: _F8, u_0: _F8,
                 dt_s: float, d_safe_m: float, calls: int, interventions: int, fallbacks: int,
-                explanation: str = "") -> FilterState:
+                explanation: str = "", period_s: float = math.nan) -> FilterState:
     """The filter's last answer: plan, per-stage margins, critical stages, explanation."""
     if res is None:
         return FilterState(enabled=enabled, t_s=t_s, u_L=ro(u_L), u_0=ro(u_0), calls=calls,
                            interventions=interventions, fallbacks=fallbacks,
+                           period_s=period_s,
                            intervened=bool(np.max(np.abs(u_L - u_0)) > 0) if enabled else False,
                            explanation=explanation)
     margins = np.asarray(res.obstacle_margin_m, dtype=float)
@@ -176,7 +177,7 @@ def filter_part(res: FilterResult | None, *, enabled: bool, t_s: float, u_L: _F8
         plan_times_s=ro(dt_s * np.arange(res.x_pred.shape[0])),
         plan_margin_m=ro(np.where(np.isfinite(margins), margins, np.nan)),
         critical_stages=ro(critical, np.int64), solve_ms=1e3 * float(res.solve_time_s),
-        interventions=interventions, fallbacks=fallbacks, calls=calls)
+        interventions=interventions, fallbacks=fallbacks, calls=calls, period_s=period_s)
 
 
 def _explain(res: FilterResult, critical: NDArray[np.int64], dt_s: float) -> str:

@@ -720,7 +720,8 @@ class Twin:
             u_L=self.u_L, u_0=self.u_0,
             dt_s=f.dt_s if f else 0.0, d_safe_m=f.psf.d_safe_m if f else 0.0,
             calls=f.calls if f else 0, interventions=f.interventions if f else 0,
-            fallbacks=sum(f.fallbacks.values()) if f else 0)
+            fallbacks=sum(f.fallbacks.values()) if f else 0,
+            period_s=1.0 / self.scenario.rates.filter_hz)
         w = self._weather_at(t)
         cur = self.world.env_state.current_ned_m_s
         source = self.weather.source if self.weather is not None else "none"

@@ -227,7 +227,8 @@ class FilterState:
     ``1 / rates.filter_hz`` s); ``u_L`` the learner's / controller's latest proposal and
     ``u_0`` the input let through [N, N, Nm]; ``plan`` the planned positions (N+1, 2) [m]
     with ``plan_margin_m`` per stage [m] (≥ 0 safe) and ``critical_stages`` the stages
-    drawn red; ``plan_times_s`` the stage times after ``t_s`` [s]; ``fallback``:
+    drawn red; ``plan_times_s`` the stage times after ``t_s`` [s]; ``period_s`` the
+    time between the filter's calls [s] (``1 / rates.filter_hz``); ``fallback``:
     ``none``, or the kind of checked fallback used; ``explanation``: a sentence a
     navigator reads."""
 
@@ -248,6 +249,7 @@ class FilterState:
     interventions: int = 0
     fallbacks: int = 0
     calls: int = 0
+    period_s: float = float("nan")
 
 
 @dataclass(frozen=True, eq=False)

@@ -64,6 +64,10 @@ class Fork:
         Wind at the own ship (NaN when unknown).
     filter_enabled : bool
         Whether the safety filter is in the loop at the fork.
+    filter_period_s : float
+        Time between the twin's filter calls [s] (``1 / rates.filter_hz``): the rollouts'
+        filter period unless :class:`~asvtwin.whatif.RolloutConfig` sets one (NaN:
+        unknown, the rollouts' default).
     scenario : str
         Scenario name of the snapshot.
     """
@@ -84,6 +88,7 @@ class Fork:
     wind_from_rad: float = float("nan")
     filter_enabled: bool = True
     scenario: str = ""
+    filter_period_s: float = float("nan")
 
     @property
     def params(self) -> VesselParams:
@@ -195,7 +200,8 @@ def fork(snapshot: Snapshot | bytes | str | dict[str, Any], *,
         track_length_m=length, track_names=tuple(names),
         wind_speed_m_s=float(w.get("wind_speed_m_s") or math.nan),
         wind_from_rad=float(w.get("wind_from_rad") or math.nan),
-        filter_enabled=bool(flt.get("enabled", True)), scenario=str(msg.get("scenario", "")))
+        filter_enabled=bool(flt.get("enabled", True)), scenario=str(msg.get("scenario", "")),
+        filter_period_s=float(flt.get("period_s") or math.nan))
 
 
 def fork_scenario(scenario: Any, *, at_s: float = 0.0, position_std_m: float | None = None,
@@ -239,4 +245,5 @@ def fork_scenario(scenario: Any, *, at_s: float = 0.0, position_std_m: float | N
                 track_ids=np.arange(n, dtype=np.int64), track_mmsi=np.array(mmsi, np.int64),
                 track_mean=np.array(mean, dtype=float).reshape(-1, 4), track_cov=cov,
                 track_length_m=np.array(lengths, dtype=float), track_names=tuple(names),
-                filter_enabled=o.controller.endswith("_psf"), scenario=scenario.name)
+                filter_enabled=o.controller.endswith("_psf"), scenario=scenario.name,
+                filter_period_s=1.0 / scenario.rates.filter_hz)

@@ -101,8 +101,9 @@ class RolloutConfig:
     dt_s : float, optional
         Simulation step [s]; default 0.05 s·√(L / 1.255 m) (0.42 s for the 88 m hull).
     filter_period_s : float, optional
-        Period of the safety filter [s]; default 0.5 s, the scenario schema's 2 Hz (the
-        default scene's twin asks its 88 m hull's filter at 0.25 Hz, once per plan stage).
+        Period of the safety filter [s]; default the forked twin's
+        (:attr:`Fork.filter_period_s`: ``1 / rates.filter_hz``, 4 s in the default scene,
+        0.5 s at the schema's 2 Hz), or 0.5 s when the fork does not say.
     economy : bool
         Filter only within reach, and hold a certified answer for a plan stage (module
         docstring); False: the twin's full rate wherever the filter is on.
@@ -195,11 +196,16 @@ class RolloutConfig:
             raise ParameterError(f"RolloutConfig.speed_up_max must be in [1, 3], actually: "
                                  f"{self.speed_up_max}")
 
-    def resolved(self, length_m: float) -> tuple[float, float]:
-        """(dt_s, filter_period_s) for a hull of ``length_m``."""
+    def resolved(self, length_m: float, twin_period_s: float = math.nan
+                 ) -> tuple[float, float]:
+        """(dt_s, filter_period_s) for a hull of ``length_m``; ``twin_period_s`` the
+        forked twin's filter period (:attr:`Fork.filter_period_s`), used when
+        ``filter_period_s`` is not set."""
         sq = math.sqrt(length_m / _CS2_L)
         dt = self.dt_s if self.dt_s is not None else 0.05 * sq
-        fp = self.filter_period_s if self.filter_period_s is not None else 0.5
+        fp = (self.filter_period_s if self.filter_period_s is not None
+              else twin_period_s if math.isfinite(twin_period_s) and twin_period_s > 0
+              else 0.5)
         return dt, max(fp, dt)
 
 
@@ -387,7 +393,7 @@ def simulate(fork: Fork, alternatives: tuple[Alternative, ...] | list[Alternativ
     if A == 0:
         raise ParameterError("at least one alternative is needed")
     L = p.length
-    dt, fper = cfg.resolved(L)
+    dt, fper = cfg.resolved(L, fork.filter_period_s)
     steps = round(cfg.horizon_s / dt)
     sq = math.sqrt(L / 88.0)
     x0 = np.broadcast_to(fork.own_state, (A * R, 6))
