@@ -99,9 +99,10 @@ class PsfConfig:
         inputs and model-scale metres); other backends ignore it. None: the mode's own
         (in BALANCE a tight one: an explicit 1e-8 behaved alike), at which 6 % of the
         full-scale QPs in the twin's benchmark scene stopped at HPIPM's iteration limit
-        (100) and ended as failed solves; at 1e-4, 0 % of the same 2,453 recorded QPs. The twin's filter uses 1e-4 (1.09-1.33
-        times as fast there: docs/twin.md, "Speed"); the default stays None because
-        the model-scale steered field of ``benchmarks/psf.py`` fell back more with it.
+        (100) and ended as failed solves; at 1e-4, 0 % of the same 2,453 recorded QPs.
+        The twin's filter uses 1e-4 (1.09-1.33 times as fast there: docs/twin.md,
+        "Speed"); the default stays None because the model-scale steered field of
+        ``benchmarks/psf.py`` fell back more with it.
     colreg : bool
         Prefer the starboard side where COLREG rules 14, 15 and 17(c) expect it: the
         solver is warm-started from a starboard turn when a head-on or crossing vessel

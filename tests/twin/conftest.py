@@ -6,9 +6,11 @@ from __future__ import annotations
 import copy
 from typing import Any
 
+import numpy as np
 import pytest
 
 from asvtwin.scenarios import Scenario
+from asvtwin.twin import RunSummary, Twin
 
 BASE: dict[str, Any] = {
     "name": "twin_test",
@@ -62,3 +64,21 @@ def scenario(**changes: Any) -> Scenario:
 @pytest.fixture
 def base_scenario() -> Scenario:
     return scenario()
+
+
+def run_sampled(sc: Scenario, duration_s: float, **rates: float
+                ) -> tuple[np.ndarray, np.ndarray, RunSummary]:
+    """Run ``sc`` with the given ``rates`` keys replaced (``sim_hz=20.0``) for
+    ``duration_s``: the own ship's (k, 2) and the targets' (k, n, 2) positions sampled
+    every simulated second, and the run's summary."""
+    d = sc.model_dump(mode="json")
+    d["rates"].update(rates)
+    twin = Twin(Scenario.model_validate(d))
+    per_s = round(1.0 / twin.dt_s)
+    own, targets = [], []
+    for k in range(round(duration_s / twin.dt_s)):
+        if k % per_s == 0:
+            own.append(twin.world.own_state[:2].copy())
+            targets.append(twin.world.target_states[:, :2].copy())
+        twin.step()
+    return np.asarray(own), np.asarray(targets), twin.summary()

@@ -13,22 +13,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from asvtwin.scenarios import Scenario, default_scenario, load_library
+from asvtwin.scenarios import default_scenario, load_library
 from asvtwin.twin import Twin
 from tests.conftest import full_run
-
-
-def _run(sc: Scenario, filter_hz: float, duration_s: float) -> tuple[np.ndarray, object]:
-    d = sc.model_dump(mode="json")
-    d["rates"]["filter_hz"] = filter_hz
-    twin = Twin(Scenario.model_validate(d))
-    per_s = round(1.0 / twin.dt_s)
-    own = []
-    for k in range(round(duration_s / twin.dt_s)):
-        if k % per_s == 0:
-            own.append(twin.world.own_state[:2].copy())
-        twin.step()
-    return np.asarray(own), twin.summary()
+from tests.twin.conftest import run_sampled
 
 
 def test_the_default_filter_holds_u0_no_longer_than_a_plan_stage() -> None:
@@ -53,21 +41,21 @@ def test_default_filter_at_its_rate_follows_the_2_hz_filter() -> None:
     sc = default_scenario()
     assert sc.rates.filter_hz == 0.25
     duration = 600.0 if full_run() else 60.0
-    own_a, s_a = _run(sc, sc.rates.filter_hz, duration)
-    own_b, s_b = _run(sc, 2.0, duration)
+    own_a, _, s_a = run_sampled(sc, duration, filter_hz=sc.rates.filter_hz)
+    own_b, _, s_b = run_sampled(sc, duration, filter_hz=2.0)
     dev = np.hypot(*(own_a - own_b).T)
     # measured 2026-12-02: 5.7 m after 60 s, 20.1 m after 600 s (1,320 m sailed)
     assert dev.max() < (40.0 if full_run() else 10.0)
     assert np.hypot(*(own_b[-1] - own_b[0])) > 100.0  # the ship moved
-    assert s_a.collisions == s_b.collisions == 0  # type: ignore[attr-defined]
-    assert s_a.groundings == s_b.groundings == 0  # type: ignore[attr-defined]
+    assert s_a.collisions == s_b.collisions == 0
+    assert s_a.groundings == s_b.groundings == 0
     # land 253.4 against 255.4 m, the ferry 2,302 against 2,282 m (600 s)
-    assert abs(s_a.min_distance_land_m - s_b.min_distance_land_m) < 10.0  # type: ignore[attr-defined]
-    for name, d_b in s_b.min_distance_targets_m.items():  # type: ignore[attr-defined]
-        assert abs(s_a.min_distance_targets_m[name] - d_b) < 50.0  # type: ignore[attr-defined]
-    assert abs(s_a.max_cte_m - s_b.max_cte_m) < 10.0  # type: ignore[attr-defined]
+    assert abs(s_a.min_distance_land_m - s_b.min_distance_land_m) < 10.0
+    for name, d_b in s_b.min_distance_targets_m.items():
+        assert abs(s_a.min_distance_targets_m[name] - d_b) < 50.0
+    assert abs(s_a.max_cte_m - s_b.max_cte_m) < 10.0
     # one call in eight: the same simulated time, an eighth of the filter's calls
-    assert s_a.filter_calls * 8 == s_b.filter_calls  # type: ignore[attr-defined]
+    assert s_a.filter_calls * 8 == s_b.filter_calls
 
 
 def test_the_snapshot_dates_the_filter_answer_it_holds() -> None:

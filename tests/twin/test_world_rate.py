@@ -11,24 +11,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from asvtwin.scenarios import Scenario, default_scenario
-from asvtwin.twin import Twin
+from asvtwin.scenarios import default_scenario
 from tests.conftest import full_run
-
-
-def _run(sc: Scenario, sim_hz: float, duration_s: float
-         ) -> tuple[np.ndarray, np.ndarray, object]:
-    d = sc.model_dump(mode="json")
-    d["rates"]["sim_hz"] = sim_hz
-    twin = Twin(Scenario.model_validate(d))
-    per_s = round(1.0 / twin.dt_s)
-    own, targets = [], []
-    for k in range(round(duration_s / twin.dt_s)):
-        if k % per_s == 0:
-            own.append(twin.world.own_state[:2])
-            targets.append(twin.world.target_states[:, :2])
-        twin.step()
-    return np.asarray(own), np.asarray(targets), twin.summary()
+from tests.twin.conftest import run_sampled
 
 
 @pytest.mark.slow
@@ -36,8 +21,8 @@ def test_default_world_at_10_hz_follows_the_20_hz_world() -> None:
     sc = default_scenario()
     assert sc.rates.sim_hz == 10.0 and sc.sensors.lidar_rate_hz == 10.0
     duration = 600.0 if full_run() else 60.0
-    own10, tg10, s10 = _run(sc, 10.0, duration)
-    own20, tg20, s20 = _run(sc, 20.0, duration)
+    own10, tg10, s10 = run_sampled(sc, duration, sim_hz=10.0)
+    own20, tg20, s20 = run_sampled(sc, duration, sim_hz=20.0)
     d_own = np.hypot(*(own10 - own20).T)
     d_tg = np.hypot(tg10[..., 0] - tg20[..., 0], tg10[..., 1] - tg20[..., 1])
     # measured: 0.02 m after 60 s, 17.4 m over 600 s (own ship, closed loop through the
@@ -48,9 +33,9 @@ def test_default_world_at_10_hz_follows_the_20_hz_world() -> None:
     assert d_tg.max() < 0.5
     # the ship moved: the agreement is not that of two ships at rest
     assert np.hypot(*(own20[-1] - own20[0])) > 100.0
-    assert s10.collisions == s20.collisions == 0  # type: ignore[attr-defined]
-    assert s10.groundings == s20.groundings == 0  # type: ignore[attr-defined]
-    for name, d20 in s20.min_distance_targets_m.items():  # type: ignore[attr-defined]
+    assert s10.collisions == s20.collisions == 0
+    assert s10.groundings == s20.groundings == 0
+    for name, d20 in s20.min_distance_targets_m.items():
         # 2,302 against 2,318 m for the ferry over 600 s (the track difference above)
-        assert abs(s10.min_distance_targets_m[name] - d20) < 25.0  # type: ignore[attr-defined]
-    assert s10.fallbacks == s20.fallbacks  # type: ignore[attr-defined]
+        assert abs(s10.min_distance_targets_m[name] - d20) < 25.0
+    assert s10.fallbacks == s20.fallbacks
