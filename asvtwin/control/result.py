@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
@@ -286,11 +287,12 @@ class FilterResult:
     u_L: _F8 | None = None
     u_range: _F8 | None = None
 
-    @property
+    @cached_property
     def intervened(self) -> bool:
         """True when u_0 differs from the (range-clipped) u_L by more than 1 % of the
         actuator range in some actuated DOF (an unactuated DOF, range 0, never counts;
-        without ``u_range``: |δu| > 0.01 in the input's units)."""
+        without ``u_range``: |δu| > 0.01 in the input's units). Computed once per result
+        (the result is frozen; the twin asks it at every snapshot)."""
         if self.u_range is None or self.u_L is None:
             return bool(np.max(np.abs(self.delta_u)) > 1e-2)
         rng = self.u_range

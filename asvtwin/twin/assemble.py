@@ -157,26 +157,40 @@ def tracks_part(tr: TrackSnapshot, t_s: float, own: _F8, pred_times_s: _F8, q: f
                   tcpa_s=ro(tcpa))
 
 
+def plan_part(res: FilterResult, dt_s: float, d_safe_m: float
+              ) -> tuple[_F8, _F8, _F8, NDArray[np.int64], str]:
+    """The parts of :func:`filter_part` that depend on the filter's answer alone (plan,
+    stage times, per-stage margins, critical stages, explanation), read-only: a caller
+    that holds an answer for many snapshots builds them once (the twin does)."""
+    margins = np.asarray(res.obstacle_margin_m, dtype=float)
+    critical = np.flatnonzero(np.isfinite(margins) & (margins < 0.25 * d_safe_m))
+    text = getattr(res, "explanation", "") or _explain(res, critical, dt_s)
+    return (ro(res.x_pred[:, :2], shape=(-1, 2)), ro(dt_s * np.arange(res.x_pred.shape[0])),
+            ro(np.where(np.isfinite(margins), margins, np.nan)), ro(critical, np.int64), text)
+
+
 def filter_part(res: FilterResult | None, *, enabled: bool, t_s: float, u_L: _F8, u_0: _F8,
                 dt_s: float, d_safe_m: float, calls: int, interventions: int, fallbacks: int,
-                explanation: str = "", period_s: float = math.nan) -> FilterState:
-    """The filter's last answer: plan, per-stage margins, critical stages, explanation."""
+                explanation: str = "", period_s: float = math.nan,
+                plan: tuple[_F8, _F8, _F8, NDArray[np.int64], str] | None = None
+                ) -> FilterState:
+    """The filter's last answer: plan, per-stage margins, critical stages, explanation
+    (``plan``: :func:`plan_part` of ``res``, when the caller has it already)."""
     if res is None:
         return FilterState(enabled=enabled, t_s=t_s, u_L=ro(u_L), u_0=ro(u_0), calls=calls,
                            interventions=interventions, fallbacks=fallbacks,
                            period_s=period_s,
                            intervened=bool(np.max(np.abs(u_L - u_0)) > 0) if enabled else False,
                            explanation=explanation)
-    margins = np.asarray(res.obstacle_margin_m, dtype=float)
-    critical = np.flatnonzero(np.isfinite(margins) & (margins < 0.25 * d_safe_m))
-    text = getattr(res, "explanation", "") or explanation or _explain(res, critical, dt_s)
+    xy, times, margin, critical, text = plan if plan is not None else plan_part(
+        res, dt_s, d_safe_m)
+    if explanation and not getattr(res, "explanation", ""):
+        text = explanation  # (the caller's text before the generated one)
     return FilterState(
         enabled=enabled, t_s=t_s, u_L=ro(u_L), u_0=ro(u_0), intervened=bool(res.intervened),
         certified=bool(res.success), fallback=str(res.fallback), status=str(res.status),
-        explanation=text, plan=ro(res.x_pred[:, :2], shape=(-1, 2)),
-        plan_times_s=ro(dt_s * np.arange(res.x_pred.shape[0])),
-        plan_margin_m=ro(np.where(np.isfinite(margins), margins, np.nan)),
-        critical_stages=ro(critical, np.int64), solve_ms=1e3 * float(res.solve_time_s),
+        explanation=text, plan=xy, plan_times_s=times, plan_margin_m=margin,
+        critical_stages=critical, solve_ms=1e3 * float(res.solve_time_s),
         interventions=interventions, fallbacks=fallbacks, calls=calls, period_s=period_s)
 
 

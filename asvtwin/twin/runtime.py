@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 import orjson
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from asvtwin.checks import F8 as _F8
 from asvtwin.errors import ScenarioError, SourceError, StateError
@@ -326,6 +326,12 @@ class Twin:
         self.scan: LidarScan | None = None
         self._scan_new: LidarScan | None = None
         self._past: deque[tuple[float, float]] = deque(maxlen=240)
+        # read-only arrays the snapshots share while their source is unchanged: the past
+        # track, the targets' static facts, the route (see _build_snapshot)
+        self._past_ro: NDArray[np.float64] | None = None
+        self._static_ro: tuple[Any, ...] | None = None
+        self._route_ro: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+        self._plan_ro: tuple[Any, Any] | None = None  # (filter answer, its plan_part)
         self._events: list[str] = []
         self._commands: list[tuple[str, dict[str, Any]]] = []
         self._lock = threading.Lock()
@@ -690,21 +696,31 @@ class Twin:
         v = assemble.ground_velocity(own)
         if not keep_state and (not self._past or t - self._past[-1][0] >= 1.0):
             self._past.append((t, own[0], own[1]))  # type: ignore[arg-type]
+            self._past_ro = None
+        if self._past_ro is None:  # (rebuilt once a second, not at every snapshot)
+            self._past_ro = ro([p[1:] for p in self._past], shape=(-1, 2))
+        static = self._static_ro
+        if static is None or static[0] is not tb or len(static[1]) != len(tb.names):
+            # the targets' static facts, read-only, until a target is added
+            static = self._static_ro = (
+                tb, tuple(tb.names), ro([-1 if m is None else m for m in tb.mmsi], np.int64),
+                ro(tb.length_m), ro(tb.beam_m), ro(np.arange(len(tb.names)), np.int64))
+        if self._route_ro is None or self._route_ro[0] is not self.route:
+            self._route_ro = (self.route, ro(self.route, shape=(-1, 2)))
         st = self.route_status
         ownship = OwnShip(
             vessel=self.scenario.own_ship.vessel, length_m=self.params.length,
             beam_m=self.metrics.own_beam_m, state=ro(own), lat_deg=float(lat), lon_deg=float(lon),
             sog_m_s=float(np.hypot(*v)), cog_rad=float(np.arctan2(v[1], v[0])),
             tau_cmd=ro(self.u_0), tau_applied=ro(self.world.own.applied_thrust[0]),
-            route=ro(self.route, shape=(-1, 2)),
+            route=self._route_ro[1],
             waypoint_index=int(st.waypoint_index) if st else 0,
             cte_m=float(st.cte_m) if st else math.nan, controller=self.controller_name,
             goal_reached=bool(st.done) if st else False,
-            past_track=ro([p[1:] for p in self._past], shape=(-1, 2)))
-        gt = GroundTruth(ids=ro(np.arange(len(truth)), np.int64), names=tuple(tb.names),
-                         mmsi=ro([-1 if m is None else m for m in tb.mmsi], np.int64),
-                         state=ro(truth, shape=(-1, 6)), length_m=ro(tb.length_m),
-                         beam_m=ro(tb.beam_m))
+            past_track=self._past_ro)
+        _, names, mmsi, length_m, beam_m, ids = static
+        gt = GroundTruth(ids=ids, names=names, mmsi=mmsi, state=ro(truth, shape=(-1, 6)),
+                         length_m=length_m, beam_m=beam_m)
         est = self.estimator
         obs = ObserverState(d_hat=ro(est.d_hat), d_true=ro(self.world.d_true),
                             fault=est.fault_kind is not None, fault_kind=est.fault_kind,
@@ -714,8 +730,11 @@ class Twin:
         horizon = (f.N * f.dt_s) if f is not None else 60.0 * math.sqrt(self.params.length / 1.255)
         pred_times = np.linspace(0.0, horizon, 7)
         last = f.last if (f is not None and self.filter_enabled) else None
+        if last is not None and (self._plan_ro is None or self._plan_ro[0] is not last):
+            self._plan_ro = (last, assemble.plan_part(last, f.dt_s, f.psf.d_safe_m))  # type: ignore[union-attr]
         filt = assemble.filter_part(
             last, enabled=self.filter_enabled,
+            plan=self._plan_ro[1] if last is not None and self._plan_ro is not None else None,
             t_s=f.last_t_s if (f is not None and last is not None) else t,
             u_L=self.u_L, u_0=self.u_0,
             dt_s=f.dt_s if f else 0.0, d_safe_m=f.psf.d_safe_m if f else 0.0,

@@ -130,6 +130,30 @@ def test_nominal_intervals() -> None:
     assert got.tolist() == [2.0, 6.0, 10.0, 180.0, 30.0, 180.0, 10.0]
 
 
+def test_nominal_intervals_compiled_as_the_table_reads_everywhere() -> None:
+    """The compiled intervals against the table written as array expressions (the form
+    they had before), on random speeds and the table's edges (2, 3, 14 and 23 kn exactly,
+    NaN, ±inf), every class and navigational status, and a broadcast scalar."""
+    kn = 1852 / 3600
+    rng = np.random.default_rng(3)
+    sog = np.concatenate([rng.uniform(0.0, 30.0, 2000),
+                          [2.0, 3.0, 14.0, 23.0, np.nan, np.inf, -np.inf, 0.0]]) * kn
+    n = sog.shape[0]
+    class_b = rng.random(n) < 0.4
+    nav = rng.integers(-1, 16, n)
+
+    def table(sog_m_s, cb, status):
+        sog_kn = np.nan_to_num(sog_m_s / kn, nan=10.0)
+        a = np.where(sog_kn > 23.0, 2.0, np.where(sog_kn > 14.0, 6.0, 10.0))
+        a = np.where((sog_kn <= 3.0) & ((status == 1) | (status == 5)), 180.0, a)
+        return np.where(cb, np.where(sog_kn > 2.0, 30.0, 180.0), a)
+
+    assert np.array_equal(nominal_report_interval_s(sog, class_b, nav),
+                          table(sog, class_b, nav))
+    got = nominal_report_interval_s(np.array([1.0, 8.0]) * kn, np.bool_(False), np.int64(5))
+    assert got.tolist() == [180.0, 10.0]
+
+
 def test_older_report_does_not_overwrite() -> None:
     reg = TargetRegistry(epoch_unix_s=T0)
     reg.update(report(t=T0 + 10))

@@ -152,11 +152,32 @@ def nominal_report_interval_s(sog_m_s: _F8, class_b: NDArray[np.bool_],
     nav_status : ndarray of int
         Navigational status; 1 (at anchor) and 5 (moored) report every 3 min.
     """
-    sog_kn = np.nan_to_num(np.asarray(sog_m_s, dtype=np.float64) / KNOT_M_S, nan=10.0)
-    a = np.where(sog_kn > 23.0, 2.0, np.where(sog_kn > 14.0, 6.0, 10.0))
-    a = np.where((sog_kn <= 3.0) & ((nav_status == 1) | (nav_status == 5)), 180.0, a)
-    b = np.where(sog_kn > 2.0, 30.0, 180.0)
-    return np.where(class_b, b, a)
+    sog, cb, nav = np.broadcast_arrays(np.asarray(sog_m_s, dtype=np.float64),
+                                       np.asarray(class_b, dtype=np.bool_),
+                                       np.asarray(nav_status, dtype=np.int64))
+    out = np.empty(sog.shape)
+    # (one compiled pass: the twin asks this at every snapshot for every target)
+    _report_intervals(np.ascontiguousarray(sog).reshape(-1), np.ascontiguousarray(cb).reshape(-1),
+                      np.ascontiguousarray(nav).reshape(-1), out.reshape(-1))
+    return out
+
+
+@njit(cache=True)
+def _report_intervals(sog_m_s, class_b, nav_status, out):  # pragma: no cover - compiled
+    for i in range(sog_m_s.shape[0]):
+        kn = sog_m_s[i] / KNOT_M_S
+        if math.isnan(kn):
+            kn = 10.0  # unknown counts as under way
+        if class_b[i]:
+            out[i] = 30.0 if kn > 2.0 else 180.0
+        elif kn <= 3.0 and (nav_status[i] == 1 or nav_status[i] == 5):
+            out[i] = 180.0
+        elif kn > 23.0:
+            out[i] = 2.0
+        elif kn > 14.0:
+            out[i] = 6.0
+        else:
+            out[i] = 10.0
 
 
 @dataclass(frozen=True)
