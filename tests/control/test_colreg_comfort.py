@@ -228,3 +228,24 @@ def test_an_overtaking_in_sight_leaves_the_side_free(psf):
         centres, _, _ = stage_circles(obs, N)
         _, moving = obstacle_labels(obs)
         assert psf._starboard_expected(x, centres, moving) == expected
+
+
+@pytest.mark.parametrize("hull", [cybership2, cybership2_full_scale])
+def test_velocity_slacks_count_model_scale_units(hull):
+    """Eq. (c)'s slacks are priced per model-scale unit: the velocity bounds of either
+    hull, multiplied by the slack scale, are the model's bounds, so the same relative
+    excess (a yaw rate 20 % above the comfort bound) costs the same at every size. At
+    model scale the scale is one (nothing changes there)."""
+    from asvtwin.control.backends.ocp import margin_scale, velocity_slack_scale
+
+    model = SafetyFilter(cybership2(), config=PsfConfig(backend="casadi-ipopt", max_iter=5))
+    psf = SafetyFilter(hull(), config=PsfConfig(backend="casadi-ipopt", max_iter=5))
+    spec = psf.backend.spec
+    f = velocity_slack_scale(spec)
+    np.testing.assert_allclose(f * np.asarray(spec.nu_max), model.nu_max, rtol=1e-12)
+    lam = margin_scale(spec)
+    assert f[2] == pytest.approx(math.sqrt(lam)) and f[0] == pytest.approx(1 / math.sqrt(lam))
+    if lam == 1.0:
+        np.testing.assert_array_equal(f, np.ones(3))
+    excess = 0.2 * psf.nu_max[2] * f[2]  # what the L1 penalty sees of a 20 % excess
+    assert excess == pytest.approx(0.2 * model.nu_max[2])

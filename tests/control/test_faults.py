@@ -376,12 +376,15 @@ def test_qp_tol_is_checked(bad):
 
 
 @pytest.mark.skipif("acados" not in available_backends(), reason="acados not installed")
-def test_qp_tolerance_converges_a_qp_the_twin_recorded():
+def test_a_qp_the_twin_recorded_converges_at_either_tolerance():
     """A full-scale QP recorded in the twin's benchmark scene (50 extra vessels, seed 7;
     tests/control/data/twin_hard_qp.npz: the state, u_L, the 51 x 133 stage parameters
-    and the warm start of one solve): at HPIPM's own BALANCE tolerance it stops at the
-    iteration limit (100) even from a reset solver, at ``qp_tol=1e-4`` (the twin's
-    setting) it converges, and the converged plan starts inside the actuator range. The
+    and the warm start of one solve). While the velocity bounds' slacks were priced in
+    the 88 m hull's own units (a yaw-rate slack 70 times cheaper per unit of the bound
+    than a surge slack), HPIPM stopped on it at its iteration limit (100) at its own
+    BALANCE tolerance and converged only at ``qp_tol=1e-4`` (the twin's setting). With
+    the slacks in model-scale units it converges at both (measured 38 and 37
+    iterations from a reset solver), and the plan starts inside the actuator range. The
     solver with a tolerance is built apart from the default one and carries it."""
     params = cybership2_full_scale()
     default = SafetyFilter(params, config=PsfConfig(backend="acados")).backend
@@ -393,16 +396,14 @@ def test_qp_tolerance_converges_a_qp_the_twin_recorded():
     assert case["P"].shape == (default.spec.N + 1, default.spec.n_p), (
         "the recorded QP no longer fits the OCP's parameters: re-record it")
     args = (case["x0"], case["u_L"], case["P"], case["x_guess"], case["u_guess"])
-    default.reset()
-    stuck = default.solve(*args)
-    assert not stuck.success and "QP status 2" in stuck.status  # iteration limit
-    loose.reset()
-    done = loose.solve(*args)
-    assert done.success, done.status
-    iters = int(np.asarray(loose._solver.get_stats("qp_iter")).ravel()[-1])
-    assert iters < 100
     lo, hi = np.asarray(default.spec.u_lb), np.asarray(default.spec.u_ub)
-    assert np.all(done.u >= lo - 1e-6) and np.all(done.u <= hi + 1e-6)
+    for backend in (default, loose):
+        backend.reset()
+        done = backend.solve(*args)
+        assert done.success, done.status
+        iters = int(np.asarray(backend._solver.get_stats("qp_iter")).ravel()[-1])
+        assert iters < 60
+        assert np.all(done.u >= lo - 1e-6) and np.all(done.u <= hi + 1e-6)
 
 
 @pytest.mark.skipif("acados" not in available_backends(), reason="acados not installed")

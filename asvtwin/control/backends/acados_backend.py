@@ -45,6 +45,7 @@ from asvtwin.control.backends.ocp import (
     input_scale,
     path_constraints,
     terminal_constraints,
+    velocity_slack_scale,
 )
 from asvtwin.errors import MissingExtraError, SolverError
 
@@ -237,11 +238,15 @@ class AcadosBackend:
         ocp.constraints.uh_e = np.full(nh_e, _H_UPPER)
         ocp.constraints.idxsh_e = np.arange(nh_e)
         ns, ns_e = 3 + nh, 3 + nh_e
+        # the velocity slacks come first (idxsbx), priced per model-scale unit as the
+        # CasADi backend's (ocp.velocity_slack_scale)
+        fv = velocity_slack_scale(s)
         for suffix, n in (("", ns), ("_e", ns_e)):
-            setattr(ocp.cost, "zl" + suffix, np.full(n, s.slack_l1))
-            setattr(ocp.cost, "zu" + suffix, np.full(n, s.slack_l1))
-            setattr(ocp.cost, "Zl" + suffix, np.full(n, 2 * s.slack_l2))
-            setattr(ocp.cost, "Zu" + suffix, np.full(n, 2 * s.slack_l2))
+            per_unit = np.concatenate([fv, np.ones(n - 3)])
+            setattr(ocp.cost, "zl" + suffix, s.slack_l1 * per_unit)
+            setattr(ocp.cost, "zu" + suffix, s.slack_l1 * per_unit)
+            setattr(ocp.cost, "Zl" + suffix, 2 * s.slack_l2 * per_unit**2)
+            setattr(ocp.cost, "Zu" + suffix, 2 * s.slack_l2 * per_unit**2)
 
         opts = ocp.solver_options
         opts.tf = s.N * s.dt_s

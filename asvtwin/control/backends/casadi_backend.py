@@ -32,6 +32,7 @@ from asvtwin.control.backends.ocp import (
     input_scale,
     path_constraints,
     terminal_constraints,
+    velocity_slack_scale,
 )
 from asvtwin.errors import SolverError
 
@@ -84,6 +85,7 @@ class CasadiBackend:
         HN = terminal_constraints(s)
         W = ca.DM(np.diag(s.W))
         nu_max = ca.DM(s.nu_max)
+        fv = ca.DM(velocity_slack_scale(s))
         # inputs scaled to O(1), u = S·u_s (as the acados backend): in newtons and
         # newton-metres an 88 m hull's cost gradient is ~1e-6, below IPOPT's tolerances
         self._S = input_scale(s.u_lb, s.u_ub)
@@ -152,7 +154,8 @@ class CasadiBackend:
                 ubg.extend([inf] * hk.shape[0])
                 sv = Sk[nh:nh + 3]
                 nu = Xs[k][3:6]
-                g.append(ca.vertcat(nu_max - nu + sv, nu_max + nu + sv))  # eq. (c), soft
+                # eq. (c), soft, its slack in model-scale units
+                g.append(ca.vertcat((nu_max - nu) * fv + sv, (nu_max + nu) * fv + sv))
                 lbg.extend([0.0] * 6)
                 ubg.extend([inf] * 6)
         nlp = {"x": ca.vertcat(*w), "f": J, "g": ca.vertcat(*g), "p": P}

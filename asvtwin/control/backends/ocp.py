@@ -16,8 +16,9 @@ The OCP of the paper's "Predictive Safety Filter" section,
 is described here by stage functions a backend assembles: the discrete dynamics ``F``
 (classic RK4 of the vessel model, |·| smoothed as sqrt(z² + 1e-6): with the plain
 absolute value IPOPT hit its iteration limit near zero speed), the soft path constraints ``h(x, p) >= 0`` and the terminal constraints
-``h_N(x, p) >= 0``. Every soft constraint has an L1-penalised slack (weight ``rho``); the
-inputs are hard.
+``h_N(x, p) >= 0``. Every soft constraint has an L1-penalised slack (weight ``rho``),
+counted in model-scale units at every hull size (:func:`margin_scale`,
+:func:`velocity_slack_scale`); the inputs are hard.
 
 Stage parameters ``p_k`` (one vector per stage, ``(N+1, n_p)``) carry everything that
 changes between calls, so a solver is built once: ``[d̂ (3), clearance (1), circles
@@ -40,6 +41,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -59,6 +61,7 @@ __all__ = [
     "discrete_dynamics",
     "path_constraints",
     "terminal_constraints",
+    "velocity_slack_scale",
 ]
 
 #: ε of the smoothed absolute value sqrt(z² + ε) in the damping.
@@ -66,7 +69,8 @@ SMOOTH_ABS_EPS = 1e-6
 #: Unused obstacle slots sit this many ship lengths away from the own ship.
 DUMMY_DISTANCE_FACTOR = 200.0
 #: What changes the generated code beyond the spec: part of every cache key.
-FORMULATION = "stage N: braking credit tangent a V_N with static flags; Froude margins"
+FORMULATION = ("stage N: braking credit tangent a V_N with static flags; Froude margins; "
+               "Froude velocity slacks")
 #: The hull length whose metres the solver's obstacle margins are counted in (CyberShip
 #: II's): see :func:`margin_scale`.
 MARGIN_REFERENCE_LENGTH_M = 1.255
@@ -248,6 +252,20 @@ def margin_scale(spec: OcpSpec) -> float:
     (900 s); with the margins in model-scale metres 3 %. At model scale nothing
     changes."""
     return max(spec.vessel.length / MARGIN_REFERENCE_LENGTH_M, 1e-9)
+
+
+def velocity_slack_scale(spec: OcpSpec) -> NDArray[np.float64]:
+    """What the velocity bounds' slacks (eq. (c): surge, sway, yaw rate) are multiplied
+    by before the L1/L2 penalty: (1/√λ, 1/√λ, √λ) with λ = :func:`margin_scale`, so that
+    they count model-scale units at every hull size, as the obstacle margins do.
+
+    By Froude similarity speeds grow with √λ and yaw rates shrink with it. Priced in its
+    own units, a yaw rate 45 % above the 88 m hull's comfort bound (0.0179 rad/s) cost
+    ρ · 0.008 = 0.8, against 6.8 for the same relative excess of the model (0.15 rad/s):
+    the full-scale solver turned past its comfort bound at a fraction of the price the
+    model's paid. At model scale (λ = 1) nothing changes."""
+    r = math.sqrt(margin_scale(spec))
+    return np.array([1.0 / r, 1.0 / r, r])
 
 
 def path_constraints(spec: OcpSpec) -> ca.Function:
