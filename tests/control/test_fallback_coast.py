@@ -88,3 +88,46 @@ def test_the_last_calls_manoeuvre_is_kept_while_it_is_nearly_as_good():
     pick, _ = select_candidate([port, ashore], np.zeros(6), np.zeros(2), cert, **kw,
                                previous=("turn_starboard", "full ahead, 1/3 horizon"))
     assert pick.kind is Fallback.TURN_PORT
+
+
+def _timed(kind, stage_deep, deep_m, late_m, detail="test", side=0.0):
+    """A candidate clear of the vessel until ``stage_deep``, where it goes ``deep_m`` into
+    its circle [m beyond d_safe], and ``late_m`` deep at stage 28 (the circle grown)."""
+    r = _row(kind, 3.0, 1.0, detail, side)
+    m = r.margins.copy()
+    m[stage_deep, 0] = deep_m
+    m[28, 0] = late_m
+    return r._replace(margins=m, closest=float(min(deep_m, late_m)))
+
+
+def test_without_a_certified_plan_staying_clear_longer_comes_before_depth():
+    """The twin's dense scene (rl_psf, seed 7, t = 264-340 s): every candidate ended deep
+    in some vessel's grown circle minutes ahead, and the largest closest approach chose
+    full thrust across the bow of a vessel 300 m off, which it hit 80 s later. The plan
+    that stays clear longest is taken first; depth decides between plans as long."""
+    cert = _cert()
+    kw = {"length_m": 1.255, "r_comfort": 0.16, "prefer_starboard": False}
+    across = _timed(Fallback.TURN_STARBOARD, 3, -1.0, -2.0)  # into a vessel at stage 3
+    astern = _timed(Fallback.ASTERN, 28, -2.5, -2.5)  # clear until the grown circle
+    pick, _ = select_candidate([across, astern], np.zeros(6), np.zeros(2), cert, **kw)
+    assert pick is astern
+    # the last call's manoeuvre is not kept where it runs in sooner
+    pick, _ = select_candidate([across, astern], np.zeros(6), np.zeros(2), cert, **kw,
+                               previous=("turn_starboard", "test"))
+    assert pick is astern
+    # a shallow touch (within 10 % of d_safe) is not an intrusion: depth decides
+    touch = _timed(Fallback.TURN_PORT, 3, -0.05, -1.0)
+    pick, _ = select_candidate([touch, astern], np.zeros(6), np.zeros(2), cert, **kw)
+    assert pick is touch
+    # COLREG's starboard preference does not take a plan that runs in sooner
+    stb = _timed(Fallback.TURN_STARBOARD, 5, -2.0, -2.0, side=1.0)
+    port = _timed(Fallback.TURN_PORT, 28, -2.1, -2.1, side=-1.0)
+    pick, _ = select_candidate([stb, port], np.zeros(6), np.zeros(2), cert,
+                               length_m=1.255, r_comfort=0.16, prefer_starboard=True)
+    assert pick is port
+    # the coast still comes first
+    ashore = _timed(Fallback.BRAKING, 28, -0.5, -0.5)._replace(
+        margins=astern.margins.copy())
+    ashore.margins[10, 1] = -0.6
+    pick, _ = select_candidate([ashore, across], np.zeros(6), np.zeros(2), cert, **kw)
+    assert pick is across
