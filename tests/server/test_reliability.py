@@ -20,10 +20,23 @@ CLIENTS = Path(__file__).with_name("wsclients.py")
 
 
 def tick_rate(feed: SyntheticFeed, seconds: float) -> float:
-    t0 = time.perf_counter()
-    n0 = feed.seq
-    time.sleep(seconds)
-    return (feed.seq - n0) / (time.perf_counter() - t0)
+    return tick_stats(feed, seconds)[0]
+
+
+def tick_stats(feed: SyntheticFeed, seconds: float) -> tuple[float, float]:
+    """(ticks per second, longest time without a tick [s]) over ``seconds``, polled every
+    5 ms. A loop blocked by its clients shows as a long gap; a machine whose two cores
+    are shared with another test worker and the clients' own process slows every tick a
+    little and shows as a lower rate with short gaps."""
+    t0 = last = time.perf_counter()
+    n0 = n = feed.seq
+    gap = 0.0
+    while (now := time.perf_counter()) - t0 < seconds:
+        if feed.seq != n:
+            n, last = feed.seq, now
+        gap = max(gap, now - last)
+        time.sleep(0.005)
+    return (feed.seq - n0) / (time.perf_counter() - t0), gap
 
 
 @pytest.fixture(scope="module")
@@ -42,16 +55,20 @@ def test_twenty_clients_connecting_and_dropping_keep_the_tick_rate(server):
     deadline = time.monotonic() + 60
     while not server.hub.clients and time.monotonic() < deadline:
         time.sleep(0.02)  # the clients' interpreter starting
-    loaded = tick_rate(feed, 4.0)
+    loaded, gap = tick_stats(feed, 4.0)
     out, _ = proc.communicate(timeout=120)
     cycles = [json.loads(line) for line in out.splitlines()]
     assert len(cycles) == 3
     for c in cycles:
         assert c["ok"] == 20, c["errors"]
         assert min(c["messages"]) >= 1  # every client got snapshots
-    # the loop kept its rate (20 Hz nominal) with clients coming and going
+    # the loop kept ticking (20 Hz nominal, a tick every 50 ms) with clients coming and
+    # going: never 0.25 s (5 ticks) without one, and the rate within 25 % of the rate
+    # without clients. (0.9 x the rate failed once in CI at 16.2 Hz against 20.0 Hz: the
+    # other test worker and the 20 clients' process share the two cores with this one.)
     assert base >= 0.9 * 20.0, f"baseline tick rate {base:.1f} Hz (machine overloaded?)"
-    assert loaded >= 0.9 * base, f"tick rate {loaded:.1f} Hz with clients vs {base:.1f} Hz without"
+    assert gap < 0.25, f"{gap:.2f} s without a tick while clients came and went"
+    assert loaded >= 0.75 * base, f"tick rate {loaded:.1f} Hz with clients vs {base:.1f} Hz without"
     deadline = time.monotonic() + 10
     while server.hub.clients and time.monotonic() < deadline:
         time.sleep(0.1)
