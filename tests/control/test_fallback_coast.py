@@ -126,8 +126,7 @@ def test_without_a_certified_plan_staying_clear_longer_comes_before_depth():
                                length_m=1.255, r_comfort=0.16, prefer_starboard=True)
     assert pick is port
     # the coast still comes first
-    ashore = _timed(Fallback.BRAKING, 28, -0.5, -0.5)._replace(
-        margins=astern.margins.copy())
-    ashore.margins[10, 1] = -0.6
+    ashore = astern._replace(kind=Fallback.BRAKING, margins=astern.margins.copy())
+    ashore.margins[10, 1] = -0.6  # as late as `astern`, but 0.6 m into the coast
     pick, _ = select_candidate([ashore, across], np.zeros(6), np.zeros(2), cert, **kw)
     assert pick is across
