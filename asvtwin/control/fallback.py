@@ -202,6 +202,7 @@ def static_low(r: Scored, cert: Certifier) -> float:
 def select_candidate(rows: list[Scored], x: _F8, m0: _F8, cert: Certifier, *,
                      length_m: float, r_comfort: float, prefer_starboard: bool,
                      previous: tuple[str, str] | None = None,
+                     spread: _F8 | None = None,
                      ) -> tuple[Scored, list[tuple[str, str, float, bool]]]:
     """The candidate to apply, and every candidate's score (kind, detail, closest
     approach [m], certified), best first.
@@ -212,8 +213,11 @@ def select_candidate(rows: list[Scored], x: _F8, m0: _F8, cert: Certifier, *,
       (or the present |r|, if larger), else the one that exceeds it least.
     - Inside d_safe (some stage-0 margin ``m0`` < 0): the plan that gets out without
       closing in, then the one that ends furthest out.
-    - Otherwise the plan whose first deep intrusion (a margin below −10 % of d_safe) comes
-      latest, then the largest closest approach; where COLREG expects starboard, a
+    - Otherwise the plan whose first deep intrusion (a margin below −10 % of d_safe)
+      comes latest; between plans as late, the one whose first deep intrusion around a
+      vessel's predicted *mean* position comes latest (``spread``, (N+1, m) [m]: the
+      uncertainty part of each circle's radius, :func:`~asvtwin.control.obstacles.
+      stage_spread`); then the largest closest approach; where COLREG expects starboard, a
       starboard or straight plan as late and within 10 % of d_safe of it (and not inside
       d_safe where the best is outside) is taken instead. The choice says so in its
       detail.
@@ -237,6 +241,16 @@ def select_candidate(rows: list[Scored], x: _F8, m0: _F8, cert: Certifier, *,
     a vessel 300 m away (a collision 80 s later) because it ended 50 m less deep in
     another vessel's circle 3 minutes on. A plan that stays clear longer leaves the next
     calls, with fresher tracks, the time to re-plan.
+
+    And the predicted positions before depth: over that horizon the 95 % circles grow
+    faster than the ship can move (several hundred metres at 200 s), so every candidate
+    is often deep in some circle from the same stage on, and the choice between turning
+    to port, to starboard or coasting was decided by metres of a circle's edge that
+    changed from one call to the next. In the twin's dense scene the stopped ship
+    turned to port and to starboard on alternate calls for two minutes while a vessel
+    whose predicted track passed 14 m from it closed from ahead, and it passed 53 m off
+    (d_safe 88 m). Measured against the predicted mean positions, the plans that move
+    the ship off that track stay clear longest, and the next call finds the same.
     """
     d_safe = cert.d_safe_m
     m0_static = (m0[cert.static_cols] if cert.static_cols is not None
@@ -258,12 +272,20 @@ def select_candidate(rows: list[Scored], x: _F8, m0: _F8, cert: Certifier, *,
 
     deep = -max(0.1 * d_safe, cert.tol_m)
 
-    def clear_until(r: Scored) -> int:  # the first stage deeper than `deep`; N + 1: none
-        mg = r.margins
+    def first_deep(mg: _F8) -> int:  # the first stage deeper than `deep`; N + 1: none
         if mg.shape[0] < 2 or not mg.shape[1]:
             return mg.shape[0]
         bad = np.flatnonzero(~(mg[1:].min(axis=1) >= deep))  # (NaN counts as deep)
         return int(bad[0]) + 1 if bad.size else mg.shape[0]
+
+    def clear_until(r: Scored) -> tuple[int, int]:  # (the circles, around the means)
+        mg = r.margins
+        if not (spread is not None and spread.shape[0] == mg.shape[0]
+                and spread.shape[1] <= mg.shape[1] and spread.size):
+            return first_deep(mg), mg.shape[0]
+        core = mg.copy()
+        core[:, : spread.shape[1]] += spread
+        return first_deep(mg), first_deep(core)
 
     certified = [r for r in rows if r.certified]
     note = ""

@@ -53,7 +53,12 @@ from asvtwin.control.fallback import (
     select_candidate,
 )
 from asvtwin.control.kernels import rollout, warm_up
-from asvtwin.control.obstacles import Obstacles, obstacle_labels, stage_circles
+from asvtwin.control.obstacles import (
+    Obstacles,
+    obstacle_labels,
+    stage_circles,
+    stage_spread,
+)
 from asvtwin.control.result import (
     CS2_LENGTH_M,
     ActiveConstraint,
@@ -173,6 +178,7 @@ class SafetyFilter:
         self._prefer_starboard = False  # COLREG expects starboard (per call)
         # the uncertified fallback manoeuvre applied at the last call (kind, detail)
         self._last_fallback: tuple[str, str] | None = None
+        self._spread = np.zeros((self.config.N + 1, 0))  # stage_spread of the call
         self._token = object()  # this filter's claim on the shared solver (_own_backend)
 
     def _make_backend(self, cfg: PsfConfig) -> Backend:
@@ -312,6 +318,7 @@ class SafetyFilter:
             notes.append(f"u_L {np.round(u_given, 4).tolist()} outside the actuator range "
                          f"[{self.u_lb.tolist()}, {self.u_ub.tolist()}], clipped")
         centres, radii, segs = stage_circles(obstacles, N)
+        self._spread = stage_spread(obstacles, N)  # (for the fallback's ranking)
         labels, moving = obstacle_labels(obstacles)
         # static columns, and the braking credit (fading with the disturbance estimate)
         self._cert.start_call(moving, segs.shape[0], d)
@@ -528,7 +535,8 @@ class SafetyFilter:
         return select_candidate(
             rows, x, m0, self._cert, length_m=self.params.length,
             r_comfort=float(self.nu_max[2]) * (1.0 + _COMFORT_TOL),
-            prefer_starboard=self._prefer_starboard, previous=self._last_fallback)
+            prefer_starboard=self._prefer_starboard, previous=self._last_fallback,
+            spread=self._spread)
 
     def _guess(self, x: _F8, u_L: _F8, d: _F8, t_s: float) -> tuple[_F8, _F8]:
         """Primal guess: the last plan shifted to ``t_s`` (its last stage repeated), or a

@@ -130,3 +130,64 @@ def test_without_a_certified_plan_staying_clear_longer_comes_before_depth():
     ashore.margins[10, 1] = -0.6  # as late as `astern`, but 0.6 m into the coast
     pick, _ = select_candidate([ashore, across], np.zeros(6), np.zeros(2), cert, **kw)
     assert pick is across
+
+
+def test_without_a_certified_plan_the_predicted_track_decides_between_plans_as_late():
+    """The twin's dense scene (rl_psf, seed 8, t = 2,080-2,200 s): every candidate was more
+    than 10 % of d_safe inside some vessel's grown 95 % circle from the same stage on, and
+    the stopped ship turned to port and to starboard on alternate calls, decided by metres
+    of those circles' edges, while a vessel whose predicted track passed 14 m from it
+    closed from ahead (it passed 53 m off, d_safe 88 m). Between plans as late into the
+    circles, the one that stays clear of the vessels' predicted *mean* positions longest
+    is taken."""
+    cert = _cert()
+    kw = {"length_m": 1.255, "r_comfort": 0.16, "prefer_starboard": False}
+    spread = np.zeros((31, 1))
+    spread[:, 0] = 0.25 * np.arange(31)  # the circle's uncertainty part grows with time
+    off = _timed(Fallback.TURN_STARBOARD, 10, -2.0, -6.0)  # into the uncertainty only
+    on = _timed(Fallback.BRAKING, 10, -1.0, -1.0)  # as late and less deep, but:
+    on.margins[20, 0] = -5.5  # on the predicted track at stage 20 (-5.5 + 5.0 < -0.13)
+    # by the circles alone `on` is as late and ends less deep ...
+    pick, _ = select_candidate([off, on], np.zeros(6), np.zeros(2), cert, **kw)
+    assert pick is on
+    # ... but `off` never comes within d_safe of where the vessel is predicted to be
+    pick, _ = select_candidate([off, on], np.zeros(6), np.zeros(2), cert, **kw,
+                               spread=spread)
+    assert pick is off
+    # and the last call's manoeuvre is not kept where it runs onto the predicted track
+    pick, _ = select_candidate([off, on], np.zeros(6), np.zeros(2), cert, **kw,
+                               spread=spread, previous=("braking", "test"))
+    assert pick is off
+    # a plan that runs into the circles sooner is not taken for it (time first)
+    sooner = _timed(Fallback.ASTERN, 8, -2.0, -2.0)
+    pick, _ = select_candidate([sooner, on], np.zeros(6), np.zeros(2), cert, **kw,
+                               spread=spread)
+    assert pick is on
+    # the coast still comes first
+    ashore = off._replace(kind=Fallback.ASTERN, margins=off.margins.copy())
+    ashore.margins[5, 1] = -0.6
+    pick, _ = select_candidate([ashore, on], np.zeros(6), np.zeros(2), cert, **kw,
+                               spread=spread)
+    assert pick is on
+
+
+def test_stage_spread_is_the_covariance_part_of_the_radius():
+    from asvtwin.control.obstacles import (
+        CircleObstacles,
+        MovingObstacles,
+        stage_circles,
+        stage_spread,
+    )
+    rock = CircleObstacles(centres=[[50.0, 0.0]], radii=[3.0])
+    ship = MovingObstacles.constant_velocity([[0.0, 80.0]], [[1.0, 0.0]], [4.0], N=10,
+                                             dt_s=2.0, covariances=[np.eye(2) * 4.0],
+                                             process_noise=1.5)
+    bare = MovingObstacles.constant_velocity([[0.0, -80.0]], [[1.0, 0.0]], [4.0], N=10,
+                                             dt_s=2.0)
+    obs = [rock, ship, bare]
+    _, radii, _ = stage_circles(obs, 10)
+    spread = stage_spread(obs, 10)
+    assert spread.shape == radii.shape == (11, 3)
+    np.testing.assert_allclose(radii - spread, np.tile([3.0, 4.0, 4.0], (11, 1)))
+    assert np.all(spread[:, [0, 2]] == 0.0)
+    assert np.all(np.diff(spread[:, 1]) > 0)  # the prediction's uncertainty grows
