@@ -1,8 +1,8 @@
 """Benchmark of the whole twin, headless; prints one JSON object.
 
-The embedded default scenario (Trondheim Fjord, full-scale own ship under ``los_psf``;
-``--controller rl_psf`` runs the trained policy through the filter instead, and the JSON
-says which ran;
+The embedded default scenario (Trondheim Fjord, full-scale own ship under ``rl_psf``, the
+shipped policy through the safety filter; ``--controller los_psf`` runs LOS guidance
+through the filter instead, and the JSON says which ran;
 synthetic AIS through the NMEA decoder, weather fixture) plus ``--extra-targets`` (50)
 vessels placed at random on open water within 3 km of the own ship (seeded; a mix of
 class A, class B and no transponder; constant velocity or a two-leg route), every

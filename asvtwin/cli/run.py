@@ -1,10 +1,11 @@
 """``asvtwin run``: the twin's main job.
 
 Runs a scenario (the embedded default: the Trondheim Fjord, synthetic traffic through the
-NMEA path, the weather fixture, the full-scale own ship under ``los_psf``) with every
-component on. With ``--headless`` it runs to the end and writes ``run.mcap`` (the
-recording) and ``summary.json`` into ``--out``, printing the summary; without it, it serves
-the live twin to the browser viewer (``asvtwin.server``) until Ctrl-C.
+NMEA path, the weather fixture, the full-scale own ship under ``rl_psf``, the shipped
+policy through the safety filter) with every component on. With ``--headless`` it runs
+to the end and writes ``run.mcap`` (the recording) and ``summary.json`` into ``--out``,
+printing the summary; without it, it serves the live twin to the browser viewer
+(``asvtwin.server``) until Ctrl-C.
 
 Exit codes: 0 the run met its criteria, 1 it did not, 2 bad input.
 """
@@ -33,7 +34,7 @@ _log = logging.getLogger(__name__)
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "run",
-        help="run the digital twin (default scenario: Trondheim Fjord, los_psf); "
+        help="run the digital twin (default scenario: Trondheim Fjord, rl_psf); "
              "--headless writes a recording and a summary",
         description="Run the digital twin of a scenario: world, AIS through the NMEA "
                     "decoder, LiDAR, tracker, observer, controller and safety filter. "

@@ -545,5 +545,6 @@ def load_any(ref: str | os.PathLike[str], *, check_scene: bool = True) -> Scenar
 
 def default_scenario() -> Scenario:
     """The embedded default: the Trondheim scene, synthetic AIS through the NMEA path, the
-    weather fixture, the full-scale own ship under ``los_psf`` (``library/default.yaml``)."""
+    weather fixture, the full-scale own ship under ``rl_psf``: the shipped policy through
+    the safety filter (``library/default.yaml``)."""
     return load_library("default", check_scene=False)

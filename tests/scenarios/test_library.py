@@ -149,7 +149,7 @@ def test_encounters_are_the_ones_named(name):
 def test_default_is_the_documented_embedded_default():
     s = default_scenario()
     assert s.scene == "trondheim" and s.ais.mode == "synthetic" and s.weather.mode == "fixture"
-    assert s.own_ship.vessel == "cybership2_full_scale" and s.own_ship.controller == "los_psf"
+    assert s.own_ship.vessel == "cybership2_full_scale" and s.own_ship.controller == "rl_psf"
     assert len(s.targets) >= 2
 
 

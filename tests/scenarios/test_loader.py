@@ -177,7 +177,7 @@ def test_default_scenario_is_the_embedded_default():
     s = default_scenario()
     assert isinstance(s, Scenario)
     assert s.scene == "trondheim" and s.ais.mode == "synthetic" and s.weather.mode == "fixture"
-    assert s.own_ship.vessel == "cybership2_full_scale" and s.own_ship.controller == "los_psf"
+    assert s.own_ship.vessel == "cybership2_full_scale" and s.own_ship.controller == "rl_psf"
 
 
 def test_missing_files_are_named_with_their_line(tmp_path):
