@@ -283,25 +283,26 @@ def stage_circles(obstacles: Obstacles | None, N: int) -> tuple[_F8, _F8, _F8]:
     return centres, radii, segments
 
 
-def stage_spread(obstacles: Obstacles | None, N: int) -> _F8:
-    """The part of each circle's radius that is prediction uncertainty, per stage, in
-    :func:`stage_circles`' order: shape (N+1, m) [m] (the covariance inflation of a
-    moving obstacle; 0 for static circles and for moving ones without covariance).
+def stage_spread(obstacles: Obstacles | None, radii: _F8) -> _F8:
+    """The part of each circle's radius that is prediction uncertainty, per stage: the
+    ``radii`` (N+1, m) of :func:`stage_circles` for the same ``obstacles`` less each
+    circle's own radius [m] (the covariance inflation of a moving obstacle; 0 for static
+    circles and for moving ones without covariance).
 
     ``radii − spread`` is the circle around the predicted *mean* position (hull plus
     clearance): where a plan comes within d_safe of it, it runs at where the vessel is
     expected to be, not only into the uncertainty of its prediction.
     """
-    circles = [o for o in _as_list(obstacles) if not isinstance(o, CoastSegments)]
-    m = sum(len(o) for o in circles)
-    out = np.zeros((N + 1, m))
+    own = np.empty(radii.shape[1])
     j = 0
-    for o in circles:
-        n = len(o)
-        if isinstance(o, MovingObstacles) and o.covariances is not None:
-            out[:, j: j + n] = covariance_inflation(o.covariances, o.confidence).T
-        j += n
-    return out
+    for o in _as_list(obstacles):
+        if not isinstance(o, CoastSegments):
+            own[j: j + len(o)] = o.radii
+            j += len(o)
+    if j != radii.shape[1]:
+        raise StateError(f"radii must have one column per circle ({j}), actually: "
+                         f"{radii.shape[1]}")
+    return radii - own
 
 
 def obstacle_labels(obstacles: Obstacles | None) -> tuple[list[str], NDArray[np.bool_]]:

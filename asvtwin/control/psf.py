@@ -318,7 +318,7 @@ class SafetyFilter:
             notes.append(f"u_L {np.round(u_given, 4).tolist()} outside the actuator range "
                          f"[{self.u_lb.tolist()}, {self.u_ub.tolist()}], clipped")
         centres, radii, segs = stage_circles(obstacles, N)
-        self._spread = stage_spread(obstacles, N)  # (for the fallback's ranking)
+        self._spread = stage_spread(obstacles, radii)  # (for the fallback's ranking)
         labels, moving = obstacle_labels(obstacles)
         # static columns, and the braking credit (fading with the disturbance estimate)
         self._cert.start_call(moving, segs.shape[0], d)

@@ -186,7 +186,7 @@ def test_stage_spread_is_the_covariance_part_of_the_radius():
                                              dt_s=2.0)
     obs = [rock, ship, bare]
     _, radii, _ = stage_circles(obs, 10)
-    spread = stage_spread(obs, 10)
+    spread = stage_spread(obs, radii)
     assert spread.shape == radii.shape == (11, 3)
     np.testing.assert_allclose(radii - spread, np.tile([3.0, 4.0, 4.0], (11, 1)))
     assert np.all(spread[:, [0, 2]] == 0.0)
