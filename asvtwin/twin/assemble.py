@@ -67,8 +67,16 @@ def ais_part(ts: TargetSnapshot, frame: LocalFrame) -> AisTargets:
             L[i] = st.to_bow_m + st.to_stern_m
             if st.to_port_m is not None and st.to_starboard_m is not None:
                 B[i] = st.to_port_m + st.to_starboard_m
-    lat, lon = frame.to_wgs84(ts.position_m[:, 0], ts.position_m[:, 1]) if n else \
-        (np.zeros(0), np.zeros(0))
+    # the registry's dead-reckoned latitude and longitude where it has them (the position
+    # in metres is their projection); the frame's inverse only where it has not
+    lat, lon = np.asarray(ts.lat_deg, np.float64), np.asarray(ts.lon_deg, np.float64)
+    if lat.shape != (n,) or lon.shape != (n,):
+        lat, lon = np.full(n, np.nan), np.full(n, np.nan)
+    missing = ~(np.isfinite(lat) & np.isfinite(lon))
+    if missing.any():
+        lat, lon = lat.copy(), lon.copy()
+        lat[missing], lon[missing] = frame.to_wgs84(ts.position_m[missing, 0],
+                                                    ts.position_m[missing, 1])
     return AisTargets(
         mmsi=ro(ts.mmsi, np.int64), names=tuple(names), position_m=ro(ts.position_m, shape=(-1, 2)),
         lat_deg=ro(lat), lon_deg=ro(lon), sog_m_s=ro(sog), cog_rad=ro(cog),
@@ -136,8 +144,10 @@ def cv_cones(mean: _F8, cov: _F8, t0_s: float, times_s: _F8, q: float) -> tuple[
     return pos, radius
 
 
-def tracks_part(tr: TrackSnapshot, t_s: float, own: _F8, pred_times_s: _F8, q: float) -> Tracks:
-    """Tracks with CV prediction cones (2-σ radius) and CPA/TCPA to the own ship."""
+def tracks_part(tr: TrackSnapshot, t_s: float, own: _F8, pred_times_s: _F8, q: float,
+                own_velocity: _F8 | None = None) -> Tracks:
+    """Tracks with CV prediction cones (2-σ radius) and CPA/TCPA to the own ship
+    (``own_velocity``: its :func:`ground_velocity`, when the caller has it already)."""
     n = len(tr)
     h = pred_times_s.shape[0]
     if n == 0:
@@ -150,7 +160,8 @@ def tracks_part(tr: TrackSnapshot, t_s: float, own: _F8, pred_times_s: _F8, q: f
     source = tuple("fused" if a and b else "ais" if b else "lidar"
                    for a, b in zip(lid.tolist(), ais.tolist(), strict=True))
     mmsi = np.array([-1 if m is None else m for m in tr.mmsi], np.int64)
-    cpa, tcpa = cpa_tcpa(own[:2], ground_velocity(own), tr.mean[:, :2], tr.mean[:, 2:])
+    v_own = ground_velocity(own) if own_velocity is None else own_velocity
+    cpa, tcpa = cpa_tcpa(own[:2], v_own, tr.mean[:, :2], tr.mean[:, 2:])
     return Tracks(ids=ro(tr.ids, np.int64), mmsi=ro(mmsi, np.int64), status=tuple(tr.status),
                   source=source, mean=ro(tr.mean), cov=ro(tr.cov), pred_times_s=ro(pred_times_s),
                   pred_mean=ro(pred_mean), pred_radius_m=ro(radius), cpa_m=ro(cpa),

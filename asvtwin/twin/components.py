@@ -155,8 +155,9 @@ class AisInput:
         return self.registry.extrapolate(t_s)
 
     def errors(self) -> dict[str, int]:
-        """The pipeline's error counters by kind."""
-        return {str(k): int(v) for k, v in self.pipeline.stats.errors.items()}
+        """The pipeline's error counters by kind (read from its counters, not from a whole
+        ``stats`` record: this is asked at every snapshot)."""
+        return {str(k): int(v) for k, v in self.pipeline.counters.counts.items()}
 
 
 class Perception:

@@ -82,25 +82,31 @@ class RouteMonitor:
         self.acceptance_radius_m = float(acceptance_radius_m)
         self.status = GuidanceStatus()
         self._route: _F8 | None = None
+        self._given: _F8 | None = None
         self._los: Any = None
 
     def update(self, position_ne: _F8, route: _F8) -> GuidanceStatus:
-        """Advance along ``route`` (k, 2) [m] with the own ship at ``position_ne`` (2,) [m]."""
+        """Advance along ``route`` (k, 2) [m] with the own ship at ``position_ne`` (2,) [m].
+
+        A changed route is a new array (the twin's ``set_route`` makes one): the array
+        given at the last call is taken as unchanged without comparing its elements."""
         from asvtwin.guidance import LosGuidance
 
         if route.shape[0] == 0:
             self.status = GuidanceStatus(done=True)
             return self.status
-        if self._route is None or self._route.shape != route.shape or \
-                not np.array_equal(self._route, route):
+        if route is not self._given and (
+                self._route is None or self._route.shape != route.shape
+                or not np.array_equal(self._route, route)):
             self._route = route.copy()
             self._los = LosGuidance(route, lookahead_m=self.lookahead_m,
                                     acceptance_radius_m=self.acceptance_radius_m)
+        self._given = route  # (the same array next tick: no element-wise comparison)
         out = self._los.step(position_ne)
         self.status = GuidanceStatus(int(np.asarray(out.waypoint_index).reshape(-1)[0]),
                                      float(np.asarray(out.cte_m).reshape(-1)[0]),
                                      float(np.asarray(out.course_rad).reshape(-1)[0]),
-                                     bool(np.all(out.done)))
+                                     bool(np.asarray(out.done).all()))
         return self.status
 
 

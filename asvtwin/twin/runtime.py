@@ -772,7 +772,7 @@ class Twin:
                                       self.perception.tracker.config.cluster.coast_margin_m),
             ellipses=assemble.ellipses_part(self.perception.ellipses()),
             tracks=assemble.tracks_part(self.perception.tracks, t, own, pred_times,
-                                        self.perception.tracker.config.q),
+                                        self.perception.tracker.config.q, own_velocity=v),
             observer=obs, filter=filt, weather=weather, health=self.scheduler.health(),
             events=events, counters=counters)
 

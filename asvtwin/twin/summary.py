@@ -249,24 +249,25 @@ class RunMetrics:
                 if self.land is not None else np.zeros(len(truth), bool))
         for key, mask in (("open_sea", ~near), ("near_coast", near)):
             self.zones[key].truths += int(mask.sum())
-        conf = tracks.confirmed()
-        if len(conf) == 0:
+        k = np.flatnonzero(tracks.is_confirmed)  # (the rows, not a whole sub-snapshot)
+        if k.size == 0:
             return
-        assigned = assign_tracks(conf.mean[:, :2], conf.ids, truth[:, :2], gate_m=self.gate_m)
+        mean, cov, ids = tracks.mean[k], tracks.cov[k], tracks.ids[k]
+        assigned = assign_tracks(mean[:, :2], ids, truth[:, :2], gate_m=self.gate_m)
         hit = np.flatnonzero(assigned >= 0)
         if hit.size == 0:
             return
-        row = {int(i): k for k, i in enumerate(conf.ids.tolist())}
+        row = {int(i): j for j, i in enumerate(ids.tolist())}
         r = np.array([row[int(a)] for a in assigned[hit]])
         x = truth[hit]
         c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
         true4 = np.column_stack([x[:, 0], x[:, 1], c * x[:, 3] - s * x[:, 4],
                                  s * x[:, 3] + c * x[:, 4]])
-        err2 = np.sum((conf.mean[r, :2] - true4[:, :2]) ** 2, axis=1)
-        e = nees(conf.mean[r], conf.cov[r], true4)
-        P = conf.cov[r]
-        ep = nees(conf.mean[r, :2], P[:, :2, :2], true4[:, :2])
-        ev = nees(conf.mean[r, 2:], P[:, 2:, 2:], true4[:, 2:])
+        m, P = mean[r], cov[r]
+        err2 = np.sum((m[:, :2] - true4[:, :2]) ** 2, axis=1)
+        e = nees(m, P, true4)
+        ep = nees(m[:, :2], P[:, :2, :2], true4[:, :2])
+        ev = nees(m[:, 2:], P[:, 2:, 2:], true4[:, 2:])
         nc = near[hit]
         self.zones["near_coast"].add(err2[nc], e[nc], ep[nc], ev[nc])
         self.zones["open_sea"].add(err2[~nc], e[~nc], ep[~nc], ev[~nc])

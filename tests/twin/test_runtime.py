@@ -45,7 +45,7 @@ def recorded(tmp_path_factory):
 
 
 def test_snapshot_is_complete_and_matches_its_schema(recorded):
-    _, summary, snaps, _ = recorded
+    twin, summary, snaps, _ = recorded
     snap, data = snaps[-1]
     jsonschema.validate(decode(data), json_schema())
     assert snap.seq == 590 and snap.t_s == pytest.approx(59.0)
@@ -63,6 +63,11 @@ def test_snapshot_is_complete_and_matches_its_schema(recorded):
     assert set(snap.ais.mmsi.tolist()) == {257000001, 257000002, 257000004}
     assert "ALPHA" in snap.ais.names and not snap.ais.stale.any()
     assert (snap.ais.age_s < 31).all()
+    # their latitude and longitude (the registry's dead reckoning on the ellipsoid) are
+    # where the scene's frame puts their positions in metres, to 1e-9 deg (0.1 mm)
+    lat, lon = twin.scene.frame.to_wgs84(snap.ais.position_m[:, 0], snap.ais.position_m[:, 1])
+    np.testing.assert_allclose(snap.ais.lat_deg, lat, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(snap.ais.lon_deg, lon, rtol=0, atol=1e-9)
     # LiDAR, ellipses, tracks: CHARLIE (no AIS) is tracked by LiDAR alone
     assert len(snap.lidar.points) > 10 and snap.lidar.n_rays == 360
     assert len(snap.ellipses.centre) >= 1
