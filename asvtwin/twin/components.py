@@ -268,9 +268,12 @@ class FilterStage:
         # credit in the OCP"). HPIPM's tolerance 1e-4, not BALANCE's own: with it, 6 %
         # of the full-scale QPs there stopped at the iteration limit and failed; 1e-4 ran
         # the twin 1.09-1.33 times as fast at seeds 7, 8, 9, with as many fallbacks
-        # within run-to-run spread (docs/twin.md, "Speed")
+        # within run-to-run spread (docs/twin.md, "Speed"). HPIPM's SPEED_ABS mode: half
+        # the time per solve (5.5 against 12.4 ms median in the benchmark scene), the
+        # full-scale encounter set and the dense scene as safe (docs/twin.md, "Speed",
+        # 2026-12-03 afternoon)
         self.psf = SafetyFilter(params, config=PsfConfig(backend=backend, retry_rti_steps=1,
-                                                         qp_tol=1e-4))
+                                                         qp_tol=1e-4, hpipm_mode="SPEED_ABS"))
         cfg = self.psf.config
         self.N, self.dt_s = cfg.N, cfg.dt_s
         self.tracker_q = float(tracker_q)

