@@ -56,9 +56,10 @@ def test_default_world_at_10_hz_keeps_the_policy_as_safe_as_at_20_hz() -> None:
     """The default controller, the trained policy through the filter (rl_psf): its closed
     loop parts further between the rates than LOS does (measured 2026-12-03: 0.01 m after
     60 s, 93.6 m after 600 s; with the twin's HPIPM mode SPEED_ABS 1.05 m after 60 s and
-    319 m after 600 s, 1,031 and 848 m sailed), with the same outcome: no contact, land 131.2 against 129.2 m (SPEED_ABS:
-    130.5 against 101.1 m, both above the 50 m criterion), the ferry 2,634 against
-    2,572 m (2,575 against 2,664 m), the same filter calls."""
+    319 m after 600 s, 1,031 and 848 m sailed), with the same outcome: no contact, land
+    131.2 against 129.2 m (SPEED_ABS: 130.5 against 101.1 m, both above the 50 m
+    criterion), the ferry 2,634 against 2,572 m (2,575 against 2,664 m), the same filter
+    calls."""
     assert default_scenario().own_ship.controller == "rl_psf"
     d_own, s10, s20 = _both_rates("rl_psf")
     assert d_own < (400.0 if full_run() else 2.0)
