@@ -148,7 +148,7 @@ class SafetyFilter:
             u_lb=tuple(self.u_lb), u_ub=tuple(self.u_ub), nu_max=tuple(self.nu_max),
             W=(float(W[0]), float(W[1]), float(W[2])), later_weight=cfg.later_weight,
             slack_l1=cfg.slack_l1, slack_l2=cfg.slack_l2,
-            P_f=tuple(self.terminal_set.P_f.ravel()),
+            yaw_slack_weight=cfg.yaw_slack_weight, P_f=tuple(self.terminal_set.P_f.ravel()),
         )
         # constants of every call, computed once
         N, s = cfg.N, self.spec

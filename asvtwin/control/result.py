@@ -114,10 +114,21 @@ class PsfConfig:
         otherwise ask the solver for a gentler certified plan first, and keep u_L (it is
         certified) only if there is none. Starts an avoidance while a gentle turn still
         suffices. u_L itself is never judged by the bound: in open water nothing changes.
-        Off by default: it cut the encounter set's avoidance yaw rates and fallbacks, but
-        the twin's benchmark scene fell back more (5 against at most 2 in its short run)
-        and so did the current-aware filter of the observer's closed-loop study
-        (docs/psf.md).
+        Off by default: at model scale it did not lower the encounter set's largest
+        avoidance yaw rate, and the current-aware filter of the observer's closed-loop
+        study fell back more with it (docs/psf.md). With ``yaw_slack_weight=10`` it is
+        the twin's optional comfort setting
+        (``asvtwin.twin.components.twin_filter_config(comfort=True)``).
+    yaw_slack_weight : float
+        What a unit of the yaw-rate bound's slack costs relative to the others' (each
+        counted in model-scale units): 1 prices it like a model-scale metre of obstacle
+        margin. Higher values make the solver's plans keep the comfort bound ν_max,r
+        where they can, and trade clearance for it: IPOPT's converged answers at 10
+        (with the comfort pass-through) cut into d_safe and fell back on 2 % of the
+        full-scale encounter set's calls (none at 1). With the comfort pass-through on
+        acados at full scale, the set's avoidance turned at most 1.11 times ν_max,r
+        (1.26 without); at model scale faster, with four times the fallbacks
+        (docs/psf.md, "The comfort bound in the twin's filter").
     """
 
     N: int = 50
@@ -145,6 +156,7 @@ class PsfConfig:
     qp_tol: float | None = None
     colreg: bool = True
     comfort_pass_through: bool = False
+    yaw_slack_weight: float = 1.0
 
     def __post_init__(self) -> None:
         checks: list[tuple[str, bool, str]] = [
@@ -154,6 +166,8 @@ class PsfConfig:
             ("later_weight", self.later_weight >= 0, ">= 0"),
             ("slack_l1", self.slack_l1 > 0, "> 0"),
             ("slack_l2", self.slack_l2 >= 0, ">= 0"),
+            ("yaw_slack_weight", math.isfinite(self.yaw_slack_weight)
+             and self.yaw_slack_weight > 0, "finite and > 0"),
             ("n_circles", self.n_circles >= 1, ">= 1"),
             ("n_segments", self.n_segments >= 0, ">= 0"),
             ("max_iter", self.max_iter >= 1, ">= 1"),

@@ -3,15 +3,21 @@ stage N's requirement given to the solver, and open water after an encounter."""
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
+import json
 import math
 
+import casadi as ca
 import numpy as np
 import pytest
 
 from asvtwin.control import MovingObstacles, PsfConfig, SafetyFilter, available_backends
+from asvtwin.control.backends import ocp
 from asvtwin.control.certification import Certifier
 from asvtwin.control.encounters import OPEN_WATER_L, encounter_cases, run_encounter
 from asvtwin.control.fallback import Fallback, Scored, plan_side, select_candidate
+from asvtwin.errors import ConfigError
 from asvtwin.vessel import cybership2, cybership2_full_scale
 
 
@@ -249,3 +255,26 @@ def test_velocity_slacks_count_model_scale_units(hull):
         np.testing.assert_array_equal(f, np.ones(3))
     excess = 0.2 * psf.nu_max[2] * f[2]  # what the L1 penalty sees of a 20 % excess
     assert excess == pytest.approx(0.2 * model.nu_max[2])
+
+
+def test_the_yaw_rate_slack_weight_prices_only_the_yaw_rate():
+    """``PsfConfig.yaw_slack_weight`` multiplies the yaw-rate slack's price alone; at its
+    default the spec's cache key is the one it had before the option existed (the
+    generated solvers already built stay valid), and another weight is another key."""
+    from asvtwin.control.backends.ocp import velocity_slack_scale
+
+    p = cybership2_full_scale()
+    one = SafetyFilter(p, config=PsfConfig(backend="casadi-ipopt", max_iter=5)).backend.spec
+    ten = SafetyFilter(p, config=PsfConfig(backend="casadi-ipopt", max_iter=5,
+                                           yaw_slack_weight=10.0)).backend.spec
+    f1, f10 = velocity_slack_scale(one), velocity_slack_scale(ten)
+    np.testing.assert_allclose(f10, f1 * np.array([1.0, 1.0, 10.0]), rtol=1e-12)
+    assert one.key() != ten.key()
+    d = dataclasses.asdict(one)
+    d.pop("yaw_slack_weight")
+    blob = json.dumps(d, sort_keys=True, default=float).encode()
+    blob += ocp.FORMULATION.encode() + ca.CasadiMeta.version().encode()
+    assert one.key() == hashlib.sha256(blob).hexdigest()[:16]
+    for bad in (0.0, -1.0, math.inf, math.nan):
+        with pytest.raises(ConfigError, match="yaw_slack_weight"):
+            PsfConfig(yaw_slack_weight=bad)

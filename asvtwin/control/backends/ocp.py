@@ -100,6 +100,9 @@ class OcpSpec:
         ε: weight of stages 1..N-1 relative to stage 0.
     slack_l1, slack_l2 : float
         Slack penalties ρ (L1) and a small quadratic term for conditioning.
+    yaw_slack_weight : float
+        What the yaw-rate bound's slack costs relative to the other slacks (1: the
+        same ρ per model-scale unit; see :func:`velocity_slack_scale`).
     P_f : tuple of 9 floats
         Terminal ellipsoid matrix (row-major 3x3).
     rk4_substeps : int
@@ -120,6 +123,7 @@ class OcpSpec:
     slack_l2: float
     P_f: tuple[float, ...]
     rk4_substeps: int = 1
+    yaw_slack_weight: float = 1.0
 
     @property
     def n_p(self) -> int:
@@ -150,7 +154,10 @@ class OcpSpec:
     def key(self) -> str:
         """Stable hash of the spec and of the formulation (cache key for generated
         code)."""
-        blob = json.dumps(asdict(self), sort_keys=True, default=float).encode()
+        d = asdict(self)
+        if d["yaw_slack_weight"] == 1.0:  # (the default leaves the older keys as they were)
+            d.pop("yaw_slack_weight")
+        blob = json.dumps(d, sort_keys=True, default=float).encode()
         blob += FORMULATION.encode()
         blob += ca.CasadiMeta.version().encode()
         return hashlib.sha256(blob).hexdigest()[:16]
@@ -263,9 +270,11 @@ def velocity_slack_scale(spec: OcpSpec) -> NDArray[np.float64]:
     own units, a yaw rate 45 % above the 88 m hull's comfort bound (0.0179 rad/s) cost
     ρ · 0.008 = 0.8, against 6.8 for the same relative excess of the model (0.15 rad/s):
     the full-scale solver turned past its comfort bound at a fraction of the price the
-    model's paid. At model scale (λ = 1) nothing changes."""
+    model's paid. At model scale (λ = 1) nothing changes.
+
+    The yaw rate's factor is further multiplied by ``spec.yaw_slack_weight``."""
     r = math.sqrt(margin_scale(spec))
-    return np.array([1.0 / r, 1.0 / r, r])
+    return np.array([1.0 / r, 1.0 / r, r * spec.yaw_slack_weight])
 
 
 def path_constraints(spec: OcpSpec) -> ca.Function:
