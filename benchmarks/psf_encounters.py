@@ -15,11 +15,13 @@ side their plan goes: starboard, port, straight), ``goal_reached`` (of the runs
 where the goal is reachable), ``open_water_intervention_share`` (of the calls with
 nothing within 15 ship lengths, those where the filter changed u_L),
 ``yaw_rate_max_avoidance_ratio`` per setting (the largest |r| while a changed input was
-applied, over the comfort bound ν_max,r), ``unfiltered_collisions``, per-setting breakdowns, and the
+applied, over the comfort bound ν_max,r; ``yaw_rate_max_fallback_ratio`` the same while
+a fallback manoeuvre was applied; ``avoidance_above_comfort_cases`` the cases whose
+avoidance turned faster than 1.05 ν_max,r), ``unfiltered_collisions``, per-setting breakdowns, and the
 median filter call time [ms].
 
 Usage: ``python benchmarks/psf_encounters.py [--backend acados,casadi-ipopt]
-[--scale model,full] [--cases all|NAME,...]``
+[--scale model,full] [--cases all|NAME,...] [--config default|twin|twin-comfort]``
 """
 
 from __future__ import annotations
@@ -44,6 +46,10 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
     ap.add_argument("--scale", default="model,full",
                     help="model, full, or both (comma-separated: model,full)")
     ap.add_argument("--cases", default="all", help="all, or comma-separated case names")
+    ap.add_argument("--config", default="default", choices=("default", "twin", "twin-comfort"),
+                    help="the filter's options: PsfConfig's defaults, the twin's "
+                         "(asvtwin.twin.components.twin_filter_config), or the twin's "
+                         "with its comfort options (comfort=True)")
     args = ap.parse_args()
     cases = encounter_cases()
     if args.cases != "all":
@@ -61,7 +67,12 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
         for c in cases:
             unfiltered += run_encounter(c, params, None).collisions
         for backend in args.backend.split(","):
-            psf = SafetyFilter(params, config=PsfConfig(backend=backend))
+            if args.config.startswith("twin"):
+                from asvtwin.twin.components import twin_filter_config
+                config = twin_filter_config(backend, comfort=args.config == "twin-comfort")
+            else:
+                config = PsfConfig(backend=backend)
+            psf = SafetyFilter(params, config=config)
             d_safe = psf.d_safe_m
             rs = []
             for c in cases:
@@ -76,7 +87,9 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
             for r in rs:
                 fb.update(r.fallbacks)
             calls = sum(r.calls for r in rs)
-            settings[f"{scale}/{psf.backend.name}"] = {
+            name = f"{scale}/{psf.backend.name}" + (
+                "" if args.config == "default" else f"/{args.config}")
+            settings[name] = {
                 "collisions": sum(r.collisions for r in rs),
                 "groundings": sum(r.groundings for r in rs),
                 "min_distance_ratio": round(min(r.min_distance_m for r in rs) / d_safe, 4),
@@ -91,6 +104,10 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
                                             f"{sum(r.open_water_calls for r in rs)}",
                 "yaw_rate_max_avoidance_ratio": round(max(
                     r.yaw_rate_max_avoidance for r in rs) / float(psf.nu_max[2]), 3),
+                "yaw_rate_max_fallback_ratio": round(max(
+                    r.yaw_rate_max_fallback for r in rs) / float(psf.nu_max[2]), 3),
+                "avoidance_above_comfort_cases": sum(
+                    r.yaw_rate_max_avoidance > 1.05 * float(psf.nu_max[2]) for r in rs),
                 "call_ms_median": round(float(np.median(np.concatenate(
                     [r.call_ms for r in rs]))), 3),
             }

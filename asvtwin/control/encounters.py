@@ -233,6 +233,8 @@ class EncounterRun:
     #: (its avoidance manoeuvres), and over the whole run
     yaw_rate_max_avoidance: float = 0.0
     yaw_rate_max: float = 0.0
+    #: the same while a fallback manoeuvre was applied (part of the avoidance's)
+    yaw_rate_max_fallback: float = 0.0
 
     def to_dict(self) -> dict:
         d = dict(self.__dict__)
@@ -270,7 +272,7 @@ def run_encounter(case: EncounterCase, params: VesselParams, psf: SafetyFilter |
     fb: Counter[str] = Counter()
     sides: Counter[str] = Counter()
     calls = inter = ow_calls = ow_inter = 0
-    r_avoid = r_all = 0.0
+    r_avoid = r_all = r_fb = 0.0
     ys: list[float] = []
     call_ms: list[float] = []
     goal = False
@@ -320,11 +322,14 @@ def run_encounter(case: EncounterCase, params: VesselParams, psf: SafetyFilter |
         else:
             u = u_L
         changed = psf is not None and res.intervened
+        fell = psf is not None and res.fallback != "none"
         for j in range(sim_substeps):
             x = sim.step(u)
             r_all = max(r_all, abs(float(x[5])))
             if changed:
                 r_avoid = max(r_avoid, abs(float(x[5])))
+            if fell:
+                r_fb = max(r_fb, abs(float(x[5])))
             tj = t + (j + 1) * dt / sim_substeps
             d = math.inf
             if len(c.target_r):
@@ -357,4 +362,4 @@ def run_encounter(case: EncounterCase, params: VesselParams, psf: SafetyFilter |
         goal_expected=c.goal_expected, starboard_expected=c.starboard_expected,
         fallback_sides=dict(sides), open_water_calls=ow_calls,
         open_water_interventions=ow_inter, yaw_rate_max_avoidance=r_avoid,
-        yaw_rate_max=r_all)
+        yaw_rate_max=r_all, yaw_rate_max_fallback=r_fb)

@@ -51,7 +51,8 @@ from asvtwin.tracking import (
 from asvtwin.tracking.turning import TurnRateEstimator, constant_turn_positions
 from asvtwin.vessel import VesselParams
 
-__all__ = ["AisInput", "DisturbanceEstimator", "FilterStage", "Perception", "tracker_config"]
+__all__ = ["AisInput", "DisturbanceEstimator", "FilterStage", "Perception", "tracker_config",
+           "twin_filter_config"]
 
 
 def tracker_config(own_length_m: float, full_scale_m: float) -> TrackerConfig:
@@ -89,6 +90,32 @@ def tracker_config(own_length_m: float, full_scale_m: float) -> TrackerConfig:
         min_separation_m=cfg.min_separation_m * s, merge_distance_m=cfg.merge_distance_m * s,
         ais=ais)
 
+
+def twin_filter_config(backend: str = "auto", *, comfort: bool = False) -> PsfConfig:
+    """The safety filter's options in the twin (its own ship is the 88 m hull).
+
+    - One SQP-RTI step per retry: among the benchmark's 50 vessels that do not give way,
+      three steps per retry cost 57 % more wall time over 900 s for 7 % fewer fallbacks
+      (an intermediate version of the OCP; docs/psf.md, "Stage N's braking credit in the
+      OCP").
+    - HPIPM's tolerance 1e-4, not BALANCE's own: with it, 6 % of the full-scale QPs there
+      stopped at the iteration limit and failed; 1e-4 ran the twin 1.09-1.33 times as
+      fast at seeds 7, 8, 9, with as many fallbacks within run-to-run spread
+      (docs/twin.md, "Speed").
+    - HPIPM's SPEED_ABS mode: half the time per solve (5.5 against 12.4 ms median in the
+      benchmark scene), the full-scale encounter set and the dense scene as safe
+      (docs/twin.md, "Speed", 2026-12-03 afternoon).
+
+    ``comfort=True`` adds the comfort pass-through and prices the yaw rate's slack ten
+    times the others' (``yaw_slack_weight=10``). Measured on acados (docs/psf.md, "The
+    comfort bound in the twin's filter"): the full-scale encounter set's avoidance turns
+    at most 1.11 times ν_max,r instead of 1.26 (1 case above 1.05 instead of 4), but the
+    filter costs 15 % more per call and the twin's benchmark ran at a median
+    ``realtime_factor`` of 48.6 (goal 50), so it is not the default. On IPOPT it is
+    worse than the defaults in every respect measured.
+    """
+    return PsfConfig(backend=backend, retry_rti_steps=1, qp_tol=1e-4, hpipm_mode="SPEED_ABS",
+                     comfort_pass_through=comfort, yaw_slack_weight=10.0 if comfort else 1.0)
 
 
 class AisInput:
@@ -262,18 +289,7 @@ class FilterStage:
                  tracker_q: float = 0.01) -> None:
         self.params = params
         self.land = scene.land if scene is not None else None
-        # one SQP-RTI step per retry: among the benchmark's 50 vessels that do not give
-        # way, three steps per retry cost 57 % more wall time over 900 s for 7 % fewer
-        # fallbacks (an intermediate version of the OCP; docs/psf.md, "Stage N's braking
-        # credit in the OCP"). HPIPM's tolerance 1e-4, not BALANCE's own: with it, 6 %
-        # of the full-scale QPs there stopped at the iteration limit and failed; 1e-4 ran
-        # the twin 1.09-1.33 times as fast at seeds 7, 8, 9, with as many fallbacks
-        # within run-to-run spread (docs/twin.md, "Speed"). HPIPM's SPEED_ABS mode: half
-        # the time per solve (5.5 against 12.4 ms median in the benchmark scene), the
-        # full-scale encounter set and the dense scene as safe (docs/twin.md, "Speed",
-        # 2026-12-03 afternoon)
-        self.psf = SafetyFilter(params, config=PsfConfig(backend=backend, retry_rti_steps=1,
-                                                         qp_tol=1e-4, hpipm_mode="SPEED_ABS"))
+        self.psf = SafetyFilter(params, config=twin_filter_config(backend))
         cfg = self.psf.config
         self.N, self.dt_s = cfg.N, cfg.dt_s
         self.tracker_q = float(tracker_q)

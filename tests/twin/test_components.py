@@ -119,3 +119,21 @@ def test_a_turning_track_is_given_on_its_arc_beside_its_straight_path() -> None:
     for k in range(30):
         obs = stage.obstacles(0.5 * k, np.zeros(6), _circling(0.5 * k, 0.0))
     assert len(obs) == 1 and stage.turning_tracks == 0
+
+
+
+def test_the_twins_filter_options():
+    """The twin's speed options hold with or without its comfort options; the comfort
+    options (comfort pass-through, the yaw rate's slack at ten times) are not the
+    default: they cost the twin's benchmark its realtime goal (docs/psf.md)."""
+    from asvtwin.twin.components import twin_filter_config
+
+    plain, comfort = twin_filter_config(), twin_filter_config("acados", comfort=True)
+    assert not plain.comfort_pass_through and plain.yaw_slack_weight == 1.0
+    assert comfort.comfort_pass_through and comfort.yaw_slack_weight == 10.0
+    for c in (plain, comfort):
+        assert (c.qp_tol, c.hpipm_mode, c.retry_rti_steps) == (1e-4, "SPEED_ABS", 1)
+    assert plain.backend == "auto" and comfort.backend == "acados"
+    stage = FilterStage(cybership2_full_scale(), None)
+    assert stage.psf.config.comfort_pass_through is False
+    assert stage.psf.config.yaw_slack_weight == 1.0
