@@ -71,10 +71,10 @@ from asvtwin.control.terminal_set import TerminalSet, compute_terminal_set
 from asvtwin.errors import ConfigError, SolverError, StateError
 from asvtwin.vessel.params import VesselParams
 
-__all__ = ["ActiveConstraint", "FilterResult", "PsfConfig", "SafetyFilter"]
+__all__ = ["COMFORT_TOL", "ActiveConstraint", "FilterResult", "PsfConfig", "SafetyFilter"]
 
 log = logging.getLogger(__name__)
-_COMFORT_TOL = 0.05  # a plan within 5 % of the yaw-rate bound ν_max,r counts as within it
+COMFORT_TOL = 0.05  # a plan within 5 % of the yaw-rate bound ν_max,r counts as within it
 
 
 class SafetyFilter:
@@ -479,7 +479,7 @@ class SafetyFilter:
         ν_max,r (5 % tolerance), or than u_L's step left the ship turning."""
         if X.shape[0] < 3:
             return True
-        r_ok = max(float(self.nu_max[2]) * (1.0 + _COMFORT_TOL), abs(float(X[1, 5])))
+        r_ok = max(float(self.nu_max[2]) * (1.0 + COMFORT_TOL), abs(float(X[1, 5])))
         return float(np.max(np.abs(X[2:, 5]))) <= r_ok
 
     def _learner_plans(self, x: _F8, uL: _F8, t_s: float) -> list[_F8]:
@@ -534,7 +534,7 @@ class SafetyFilter:
                                dist))
         return select_candidate(
             rows, x, m0, self._cert, length_m=self.params.length,
-            r_comfort=float(self.nu_max[2]) * (1.0 + _COMFORT_TOL),
+            r_comfort=float(self.nu_max[2]) * (1.0 + COMFORT_TOL),
             prefer_starboard=self._prefer_starboard, previous=self._last_fallback,
             spread=self._spread)
 

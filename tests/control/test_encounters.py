@@ -145,8 +145,9 @@ def test_the_twins_comfort_options_keep_the_avoidance_within_the_bound():
     slack priced ten times) on the 88 m hull: the three vessel encounters whose
     avoidance turned fastest with the twin's options alone (1.26, 1.21 and 1.19 times
     ν_max,r: a head-on with a vessel crossing from starboard and one overtaking the own
-    ship, a crossing from port while overtaken, a fine crossing while overtaking) turn well within the bound (0.57,
-    0.78 and 0.57 measured), without a fallback, as safely and to the goal."""
+    ship, a crossing from port while overtaken, a fine crossing while overtaking) turn
+    well within the bound (0.57, 0.78 and 0.57 measured), without a fallback, as safely
+    and to the goal."""
     from asvtwin.twin.components import twin_filter_config
 
     p = cybership2_full_scale()

@@ -121,7 +121,6 @@ def test_a_turning_track_is_given_on_its_arc_beside_its_straight_path() -> None:
     assert len(obs) == 1 and stage.turning_tracks == 0
 
 
-
 def test_the_twins_filter_options():
     """The twin's speed options hold with or without its comfort options; the comfort
     options (comfort pass-through, the yaw rate's slack at ten times) are not the
