@@ -31,7 +31,13 @@ from collections import Counter
 
 import numpy as np
 
-from asvtwin.control import CircleObstacles, MovingObstacles, PsfConfig, SafetyFilter
+from asvtwin.control import (
+    CircleObstacles,
+    MovingObstacles,
+    PsfConfig,
+    SafetyFilter,
+    comfort_config,
+)
 from asvtwin.guidance import HeadingSpeedAutopilot
 from asvtwin.vessel import VesselSimulator, cybership2
 
@@ -39,6 +45,8 @@ from asvtwin.vessel import VesselSimulator, cybership2
 def _main(stdout) -> None:  # type: ignore[no-untyped-def]
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--backend", default="auto")
+    ap.add_argument("--config", default="default", choices=("default", "comfort"),
+                    help="the filter's defaults, or asvtwin.control.comfort_config()")
     ap.add_argument("--steps", type=int, default=300)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--steered-steps", type=int, default=300,
@@ -46,7 +54,8 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
     args = ap.parse_args()
 
     params = cybership2()
-    cfg = PsfConfig(N=50, dt_s=0.5, backend=args.backend, n_circles=20)
+    base = {"N": 50, "dt_s": 0.5, "backend": args.backend, "n_circles": 20}
+    cfg = comfort_config(**base) if args.config == "comfort" else PsfConfig(**base)
     t0 = time.perf_counter()
     psf = SafetyFilter(params, config=cfg)
     build_s = time.perf_counter() - t0
@@ -123,6 +132,7 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
         }
     print(json.dumps({
         "backend": psf.backend.name,
+        "config": args.config,
         "N": cfg.N,
         "dt_s": cfg.dt_s,
         "n_obstacles": n_static + n_moving,

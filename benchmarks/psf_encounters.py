@@ -18,11 +18,14 @@ nothing within 15 ship lengths, those where the filter changed u_L),
 applied, over the comfort bound ν_max,r; ``yaw_rate_max_fallback_ratio`` the same while
 a fallback manoeuvre was applied; ``avoidance_above_comfort_cases`` the cases whose
 avoidance turned faster than the filter's own comfort tolerance,
-1.05 ν_max,r), ``unfiltered_collisions``, per-setting breakdowns, and the
+1.05 ν_max,r; ``yaw_rate_max_steered_ratio`` and ``steered_above_comfort_cases`` the
+same leaving out the moments when the applied yaw moment opposed the turn at full
+strength: the yaw the filter steered into, not a turn the hull kept up against all its
+thrusters could do), ``unfiltered_collisions``, per-setting breakdowns, and the
 median filter call time [ms].
 
 Usage: ``python benchmarks/psf_encounters.py [--backend acados,casadi-ipopt]
-[--scale model,full] [--cases all|NAME,...] [--config default|twin|twin-comfort]``
+[--scale model,full] [--cases all|NAME,...] [--config default|comfort|twin|twin-comfort]``
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ from collections import Counter
 
 import numpy as np
 
-from asvtwin.control import PsfConfig, SafetyFilter, available_backends
+from asvtwin.control import PsfConfig, SafetyFilter, available_backends, comfort_config
 from asvtwin.control.encounters import encounter_cases, run_encounter
 from asvtwin.control.psf import COMFORT_TOL
 from asvtwin.vessel import cybership2, cybership2_full_scale
@@ -48,8 +51,10 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
     ap.add_argument("--scale", default="model,full",
                     help="model, full, or both (comma-separated: model,full)")
     ap.add_argument("--cases", default="all", help="all, or comma-separated case names")
-    ap.add_argument("--config", default="default", choices=("default", "twin", "twin-comfort"),
-                    help="the filter's options: PsfConfig's defaults, the twin's "
+    ap.add_argument("--config", default="default",
+                    choices=("default", "comfort", "twin", "twin-comfort"),
+                    help="the filter's options: PsfConfig's defaults, "
+                         "asvtwin.control.comfort_config(), the twin's "
                          "(asvtwin.twin.components.twin_filter_config), or the twin's "
                          "with its comfort options (comfort=True)")
     args = ap.parse_args()
@@ -73,7 +78,8 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
                 from asvtwin.twin.components import twin_filter_config
                 config = twin_filter_config(backend, comfort=args.config == "twin-comfort")
             else:
-                config = PsfConfig(backend=backend)
+                config = (comfort_config(backend=backend) if args.config == "comfort"
+                          else PsfConfig(backend=backend))
             psf = SafetyFilter(params, config=config)
             d_safe = psf.d_safe_m
             rs = []
@@ -111,6 +117,11 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
                 "avoidance_above_comfort_cases": sum(
                     r.yaw_rate_max_avoidance > (1.0 + COMFORT_TOL) * float(psf.nu_max[2])
                     for r in rs),
+                "yaw_rate_max_steered_ratio": round(max(
+                    r.yaw_rate_max_steered for r in rs) / float(psf.nu_max[2]), 3),
+                "steered_above_comfort_cases": sorted(
+                    r.name for r in rs
+                    if r.yaw_rate_max_steered > (1.0 + COMFORT_TOL) * float(psf.nu_max[2])),
                 "call_ms_median": round(float(np.median(np.concatenate(
                     [r.call_ms for r in rs]))), 3),
             }

@@ -33,6 +33,7 @@ from asvtwin.control.obstacles import (
     stage_circles,
 )
 from asvtwin.control.psf import ActiveConstraint, FilterResult, PsfConfig, SafetyFilter
+from asvtwin.control.result import comfort_config
 from asvtwin.control.terminal_set import (
     TerminalSet,
     braking_input,
@@ -60,6 +61,7 @@ __all__ = [
     "available_backends",
     "braking_input",
     "classify_encounters",
+    "comfort_config",
     "compute_terminal_set",
     "covariance_inflation",
     "cpa_tcpa",

@@ -235,6 +235,11 @@ class EncounterRun:
     yaw_rate_max: float = 0.0
     #: the same while a fallback manoeuvre was applied (part of the avoidance's)
     yaw_rate_max_fallback: float = 0.0
+    #: the avoidance's largest |r| [rad/s] while the applied yaw moment did not oppose
+    #: the turn with (≥ 99 % of) the full moment: the yaw the filter steered into, apart
+    #: from a turn the hull kept up against everything its thrusters could do (at full
+    #: thrust in a turn CyberShip II's yaw rate can outrun the full opposite moment)
+    yaw_rate_max_steered: float = 0.0
 
     def to_dict(self) -> dict:
         d = dict(self.__dict__)
@@ -272,7 +277,7 @@ def run_encounter(case: EncounterCase, params: VesselParams, psf: SafetyFilter |
     fb: Counter[str] = Counter()
     sides: Counter[str] = Counter()
     calls = inter = ow_calls = ow_inter = 0
-    r_avoid = r_all = r_fb = 0.0
+    r_avoid = r_all = r_fb = r_steer = 0.0
     ys: list[float] = []
     call_ms: list[float] = []
     goal = False
@@ -328,6 +333,10 @@ def run_encounter(case: EncounterCase, params: VesselParams, psf: SafetyFilter |
             r_all = max(r_all, abs(float(x[5])))
             if changed:
                 r_avoid = max(r_avoid, abs(float(x[5])))
+                if float(u[2]) * math.copysign(1.0, float(x[5])) > -0.99 * max(
+                        -float(params.actuators.tau_min[2]),
+                        float(params.actuators.tau_max[2])):
+                    r_steer = max(r_steer, abs(float(x[5])))
             if fell:
                 r_fb = max(r_fb, abs(float(x[5])))
             tj = t + (j + 1) * dt / sim_substeps
@@ -362,4 +371,4 @@ def run_encounter(case: EncounterCase, params: VesselParams, psf: SafetyFilter |
         goal_expected=c.goal_expected, starboard_expected=c.starboard_expected,
         fallback_sides=dict(sides), open_water_calls=ow_calls,
         open_water_interventions=ow_inter, yaw_rate_max_avoidance=r_avoid,
-        yaw_rate_max=r_all, yaw_rate_max_fallback=r_fb)
+        yaw_rate_max=r_all, yaw_rate_max_fallback=r_fb, yaw_rate_max_steered=r_steer)

@@ -15,8 +15,12 @@ state and scored against the obstacles known now:
 - ``astern`` — full astern thrust, yaw damped (only for hulls that can go astern);
 - ``turn_starboard`` / ``turn_port`` — the full yaw moment for a third of the horizon or
   for all of it, with no thrust, full ahead thrust or (when available) astern thrust,
-  then coasting with the yaw rate damped; or a turn on the spot for a quarter of the
-  horizon, then full ahead (astern) for a quarter, then coasting (the way out from rest).
+  then coasting with the yaw rate damped (with ``governed``, the filter's comfort
+  pass-through, each also with its yaw moment governed so that |r| stays at the comfort
+  bound ν_max,r, where the hull allows: at full thrust in a turn CyberShip II's yaw can
+  outrun the full opposite moment); or a turn on the spot
+  for a quarter of the horizon, then full ahead (astern) for a quarter, then coasting
+  (the way out from rest).
 
 The filter takes the certified candidate closest to the learner's input (the least
 intervention), preferring one that does not go to port where COLREG expects starboard,
@@ -92,6 +96,9 @@ class Candidate:
     detail: str
     u: _F8
     damp_from: int
+    #: stages 0..govern_to-1 have their yaw moment governed to hold |r| at the comfort
+    #: bound (:func:`asvtwin.control.kernels.rollout_governed`); 0: none
+    govern_to: int = 0
 
 
 def backup_input(params: VesselParams, x: _F8, t_s: float, plan: BackupPlan | None,
@@ -106,7 +113,8 @@ def backup_input(params: VesselParams, x: _F8, t_s: float, plan: BackupPlan | No
 
 
 def candidate_inputs(params: VesselParams, x: _F8, t_s: float, N: int,
-                     plan: BackupPlan | None, solver_u: _F8 | None) -> list[Candidate]:
+                     plan: BackupPlan | None, solver_u: _F8 | None, *,
+                     governed: bool = False) -> list[Candidate]:
     """Every fallback candidate's input sequence (N, 3) from state ``x`` at ``t_s``.
 
     Yaw damping (τ_r = −k_r r) is filled in by :func:`damp_yaw` once the candidate's
@@ -144,6 +152,9 @@ def candidate_inputs(params: VesselParams, x: _F8, t_s: float, N: int,
                 U[:n_turn, 0] = thrust
                 U[:n_turn, 2] = tr
                 out.append(Candidate(kind, f"{word}, {span}", U, n_turn))
+                if governed:
+                    out.append(Candidate(kind, f"{word}, {span}, held at the comfort bound",
+                                         U.copy(), n_turn, govern_to=n_turn))
         # turn on the spot, then go ahead (or astern) and coast: the way out from rest
         n1, n2 = max(1, N // 4), max(2, N // 2)
         for thrust, word in thrusts[1:]:

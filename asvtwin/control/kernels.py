@@ -24,7 +24,7 @@ from numba import njit
 from asvtwin.control.backends.ocp import SMOOTH_ABS_EPS
 from asvtwin.vessel.kernels import hydrodynamic_force_abs
 
-__all__ = ["certify", "obstacle_margins", "rollout"]
+__all__ = ["certify", "obstacle_margins", "rollout", "rollout_governed", "rollout_lagged"]
 
 _EPS = SMOOTH_ABS_EPS
 
@@ -80,6 +80,109 @@ def rollout(x0, U, d, p, dt, substeps, out):  # pragma: no cover - compiled
             out[k + 1, j] = a[j]
             if bad < 0 and not math.isfinite(a[j]):
                 bad = k + 1
+    return bad
+
+
+@njit(cache=True)
+def rollout_lagged(x0, tau0, U, d, p, dt, substeps, tc, out, out_tau):  # pragma: no cover
+    """:func:`rollout` with the thrusters' first-order lag, as
+    :func:`~asvtwin.control.backends.ocp.discrete_lagged_dynamics`: the thrust produced
+    (from ``tau0`` (3,)) follows the held command ``U[k]`` as τ(t) = U[k] + (τ_k − U[k])
+    e^{−t/T} (``tc`` (3,) [s], all > 0), exactly; the hull feels τ(t) + d at each RK4
+    node's time. States into ``out`` (N+1, 6), the thrust at every stage into
+    ``out_tau`` (N+1, 3). Returns the first stage whose state is not finite, or -1."""
+    return rollout_governed(x0, tau0, U, d, p, dt, substeps, tc, True, math.inf, 0, out,
+                            out_tau)
+
+@njit(cache=True)
+def _stage(a, ta, u0, u1, u2, d, p, h, substeps, tc, lagged, out, out_t):  # pragma: no cover
+    """One stage of :func:`rollout` (``lagged`` False) or :func:`rollout_lagged` from
+    state ``a`` (6,) and thrust ``ta`` (3,) under the held command (u0, u1, u2), into
+    ``out`` (6,) and ``out_t`` (3,)."""
+    hh = 0.5 * h
+    w = h / 6.0
+    for j in range(6):
+        out[j] = a[j]
+    for j in range(3):
+        out_t[j] = ta[j]
+    uu = (u0, u1, u2)
+    for _ in range(substeps):
+        if lagged:
+            s0 = (out_t[0] + d[0], out_t[1] + d[1], out_t[2] + d[2])
+            m = [0.0, 0.0, 0.0]
+            e = [0.0, 0.0, 0.0]
+            for j in range(3):
+                m[j] = uu[j] + (out_t[j] - uu[j]) * math.exp(-hh / tc[j])
+                e[j] = uu[j] + (out_t[j] - uu[j]) * math.exp(-h / tc[j])
+            sm = (m[0] + d[0], m[1] + d[1], m[2] + d[2])
+            se = (e[0] + d[0], e[1] + d[1], e[2] + d[2])
+            for j in range(3):
+                out_t[j] = e[j]
+        else:
+            s0 = (u0 + d[0], u1 + d[1], u2 + d[2])
+            sm = s0
+            se = s0
+        k1 = _f(out[2], out[3], out[4], out[5], s0[0], s0[1], s0[2], p)
+        k2 = _f(out[2] + hh * k1[2], out[3] + hh * k1[3], out[4] + hh * k1[4],
+                out[5] + hh * k1[5], sm[0], sm[1], sm[2], p)
+        k3 = _f(out[2] + hh * k2[2], out[3] + hh * k2[3], out[4] + hh * k2[4],
+                out[5] + hh * k2[5], sm[0], sm[1], sm[2], p)
+        k4 = _f(out[2] + h * k3[2], out[3] + h * k3[3], out[4] + h * k3[4],
+                out[5] + h * k3[5], se[0], se[1], se[2], p)
+        for j in range(6):
+            out[j] = out[j] + w * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+
+
+@njit(cache=True)
+def rollout_governed(x0, tau0, U, d, p, dt, substeps, tc, lagged, r_cap, n_gov, out,
+                     out_tau):  # pragma: no cover - compiled
+    """:func:`rollout` (or, ``lagged``, :func:`rollout_lagged` from thrust ``tau0``)
+    with the yaw moment of stages ``0..n_gov-1`` governed: ``U[k, 2]`` gives the turn's
+    direction and its largest moment; where that moment would take the yaw rate past
+    ``r_cap`` [rad/s] by the stage's end, the stage holds the moment in
+    [−|U[k, 2]|, |U[k, 2]|] that ends it at ``r_cap`` (bisection, 20 halvings), or the
+    full opposite moment if even that leaves it faster. ``U`` is overwritten with the
+    moments used. Returns the first stage whose state is not finite, or -1."""
+    n = U.shape[0]
+    h = dt / substeps
+    a = np.empty(6)
+    ta = np.empty(3)
+    b = np.empty(6)
+    tb = np.empty(3)
+    for j in range(6):
+        out[0, j] = x0[j]
+        a[j] = x0[j]
+    for j in range(3):
+        out_tau[0, j] = tau0[j]
+        ta[j] = tau0[j]
+    bad = -1
+    for k in range(n):
+        top = U[k, 2]
+        _stage(a, ta, U[k, 0], U[k, 1], top, d, p, h, substeps, tc, lagged, b, tb)
+        if k < n_gov and top != 0.0:
+            side = 1.0 if top > 0 else -1.0
+            if side * b[5] > r_cap:
+                lo, hi = -top, top
+                _stage(a, ta, U[k, 0], U[k, 1], lo, d, p, h, substeps, tc, lagged, b, tb)
+                if side * b[5] < r_cap:
+                    for _ in range(20):
+                        mid = 0.5 * (lo + hi)
+                        _stage(a, ta, U[k, 0], U[k, 1], mid, d, p, h, substeps, tc,
+                               lagged, b, tb)
+                        if side * b[5] > r_cap:
+                            hi = mid
+                        else:
+                            lo = mid
+                U[k, 2] = lo
+                _stage(a, ta, U[k, 0], U[k, 1], lo, d, p, h, substeps, tc, lagged, b, tb)
+        for j in range(6):
+            a[j] = b[j]
+            out[k + 1, j] = a[j]
+            if bad < 0 and not math.isfinite(a[j]):
+                bad = k + 1
+        for j in range(3):
+            ta[j] = tb[j]
+            out_tau[k + 1, j] = ta[j]
     return bad
 
 
@@ -145,6 +248,10 @@ def warm_up() -> None:
     p[[0, 4, 8]] = 1.0
     X = np.zeros((2, 6))
     rollout(np.zeros(6), np.zeros((1, 3)), np.zeros(3), p, 0.5, 1, X)
+    rollout_lagged(np.zeros(6), np.zeros(3), np.zeros((1, 3)), np.zeros(3), p, 0.5, 1,
+                   np.ones(3), X, np.empty((2, 3)))
+    rollout_governed(np.zeros(6), np.zeros(3), np.ones((1, 3)), np.zeros(3), p, 0.5, 1,
+                     np.ones(3), True, 0.1, 1, X, np.empty((2, 3)))
     certify(X, np.zeros((2, 1, 2)) + 5.0, np.ones((2, 1)), np.zeros((1, 4)), np.ones(2),
             np.eye(3), np.empty((2, 2)))
 

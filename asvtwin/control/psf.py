@@ -39,7 +39,7 @@ from asvtwin.control.backends import (
     claim_backend,
     make_backend,
 )
-from asvtwin.control.backends.ocp import OcpSpec
+from asvtwin.control.backends.ocp import SMOOTH_ABS_EPS, OcpSpec
 from asvtwin.control.certification import TERM_TOL, Certifier
 from asvtwin.control.colreg import EncounterLimits, classify_encounters
 from asvtwin.control.explain import describe_cause, describe_change, describe_obstacle
@@ -52,7 +52,7 @@ from asvtwin.control.fallback import (
     damp_yaw,
     select_candidate,
 )
-from asvtwin.control.kernels import rollout, warm_up
+from asvtwin.control.kernels import rollout, rollout_governed, rollout_lagged, warm_up
 from asvtwin.control.obstacles import (
     Obstacles,
     obstacle_labels,
@@ -69,12 +69,22 @@ from asvtwin.control.result import (
 from asvtwin.control.slots import SolverSlots
 from asvtwin.control.terminal_set import TerminalSet, compute_terminal_set
 from asvtwin.errors import ConfigError, SolverError, StateError
+from asvtwin.vessel.kernels import hydrodynamic_force_abs
 from asvtwin.vessel.params import VesselParams
 
 __all__ = ["COMFORT_TOL", "ActiveConstraint", "FilterResult", "PsfConfig", "SafetyFilter"]
 
 log = logging.getLogger(__name__)
 COMFORT_TOL = 0.05  # a plan within 5 % of the yaw-rate bound ν_max,r counts as within it
+
+
+def actuator_lag(params: VesselParams) -> tuple[float, float, float]:
+    """The thrusters' time constants [s] a plan models: ``time_constant_s`` when all
+    three are finite and > 0, else zeros (no lag: the thrust is the command)."""
+    tc = tuple(float(t) for t in params.actuators.time_constant_s)
+    if len(tc) == 3 and all(math.isfinite(t) and t > 0 for t in tc):
+        return (tc[0], tc[1], tc[2])
+    return (0.0, 0.0, 0.0)
 
 
 class SafetyFilter:
@@ -149,11 +159,20 @@ class SafetyFilter:
             W=(float(W[0]), float(W[1]), float(W[2])), later_weight=cfg.later_weight,
             slack_l1=cfg.slack_l1, slack_l2=cfg.slack_l2,
             yaw_slack_weight=cfg.yaw_slack_weight, P_f=tuple(self.terminal_set.P_f.ravel()),
+            actuator_tc=actuator_lag(params) if cfg.model_actuator_lag else (0.0, 0.0, 0.0),
+            clearance_slack_weight=cfg.clearance_slack_weight,
         )
         # constants of every call, computed once
         N, s = cfg.N, self.spec
         self._coef = np.ascontiguousarray(params.packed())  # the planning model's
         self._zero3 = np.zeros(3)
+        self._tc = np.asarray(actuator_lag(params), dtype=float)
+        self._lag = bool(cfg.model_actuator_lag and self._tc.min() > 0)
+        self._tau_buf = np.empty((N + 1, 3))
+        # the thrust the vessel produces at this call (lagged plans), and what the last
+        # call applied: (t, thrust then, input applied)
+        self._tau0: _F8 | None = None
+        self._applied: tuple[float, _F8, _F8] | None = None
         self._cert = Certifier(N, self.d_safe_m, self.d_f_m, self.certify_tol_m,
                                self.terminal_set.P_f, float(self.u_range[0]))
         self._P_f = self._cert.P_f
@@ -215,11 +234,15 @@ class SafetyFilter:
         return float(inside[0] * dt) if inside.size else math.inf
 
     # --------------------------------------------------------------------- helpers
-    def rollout(self, x0: ArrayLike, u: ArrayLike, d_hat: ArrayLike | None = None) -> _F8:
+    def rollout(self, x0: ArrayLike, u: ArrayLike, d_hat: ArrayLike | None = None, *,
+                tau0: ArrayLike | None = None) -> _F8:
         """States (N+1, 6) of the plan ``u`` (N, 3) from ``x0`` on the filter's model.
 
         The model is the solver's (eq. (a), RK4 per stage, smoothed |·|), evaluated by
-        the compiled :func:`asvtwin.control.kernels.rollout`.
+        the compiled :func:`asvtwin.control.kernels.rollout`; with the thrusters' lag
+        (``PsfConfig.model_actuator_lag``) by :func:`~asvtwin.control.kernels.
+        rollout_lagged` from the thrust ``tau0`` [N, N, Nm] (default: the thrust of the
+        current call, or ``u[0]`` outside a call).
         """
         N = self.config.N
         x0 = np.ascontiguousarray(x0, dtype=float)
@@ -231,7 +254,15 @@ class SafetyFilter:
         if d.shape != (3,):
             raise StateError(f"d_hat must have shape (3,), actually: {d.shape}")
         X = np.empty((N + 1, 6))
-        rollout(x0, U, d, self._coef, self.config.dt_s, self.spec.rk4_substeps, X)
+        if self._lag:
+            t0 = self._tau0 if tau0 is None else np.asarray(tau0, dtype=float)
+            if t0 is None:
+                t0 = U[0]  # (outside a call: no lag transient at the start)
+            rollout_lagged(x0, np.ascontiguousarray(t0, dtype=float), U, d, self._coef,
+                           self.config.dt_s, self.spec.rk4_substeps, self._tc, X,
+                           self._tau_buf)
+        else:
+            rollout(x0, U, d, self._coef, self.config.dt_s, self.spec.rk4_substeps, X)
         return X
 
     def _own_backend(self) -> None:
@@ -245,6 +276,7 @@ class SafetyFilter:
     def reset(self) -> None:
         """Forget the last plan and the solver's iterate (new episode)."""
         self._plan, self._last, self._t = None, None, None
+        self._tau0, self._applied = None, None
         self._solved_last = False
         self._fallback_t = None
         self._last_fallback = None
@@ -278,7 +310,8 @@ class SafetyFilter:
 
     # ------------------------------------------------------------------------ filter
     def filter(self, x: ArrayLike, u_L: ArrayLike, obstacles: Obstacles | None = None,
-               d_hat: ArrayLike | None = None, *, t_s: float | None = None) -> FilterResult:
+               d_hat: ArrayLike | None = None, *, t_s: float | None = None,
+               tau: ArrayLike | None = None) -> FilterResult:
         """The safe input for state ``x`` and learner input ``u_L``.
 
         Parameters
@@ -294,6 +327,12 @@ class SafetyFilter:
             Disturbance estimate τ̂_d [N, N, Nm], body frame, held over the horizon.
         t_s : float, optional
             Time of ``x`` [s]; default: one stage after the previous call.
+        tau : array_like, shape (3,), optional
+            The thrust the vessel produces now [N, N, Nm], where the caller knows it.
+            Default: what the filter's own last output has become by ``t_s`` through
+            the thrusters' first-order lag (at the first call: the thrust that holds
+            the present velocity); used only when
+            the plans model the lag (``PsfConfig.model_actuator_lag``).
 
         Raises
         ------
@@ -313,6 +352,7 @@ class SafetyFilter:
             raise StateError(f"t_s must be finite, actually: {t_s}")
         self._t = float(t_s)
         uL = np.clip(u_given, self.u_lb, self.u_ub)
+        self._tau0 = self._thrust_now(t_s, x, tau)
         notes = []
         if not np.array_equal(uL, u_given):
             notes.append(f"u_L {np.round(u_given, 4).tolist()} outside the actuator range "
@@ -413,6 +453,12 @@ class SafetyFilter:
                                           solved=True, iters=iters, t_solve=t_solve)
             if best is not None and best[4]:
                 chosen_kind = Fallback.NONE
+                gentle = (self._gentler_tail(x, t_s, d, centres, radii, segs, m0, best[0])
+                          if cfg.comfort_pass_through else None)
+                if gentle is not None:  # safe, then comfortable, then minimal
+                    note, best = gentle
+                    notes.append(note)
+                    self._last = (t_s, best[0], best[1])  # warm-start the next from it
                 break
             # 3. checked fallback candidates, scored against the obstacles known now
             solver_u = best[1] if best is not None and np.all(np.isfinite(best[1])) else None
@@ -442,6 +488,56 @@ class SafetyFilter:
                             t_solve, chosen_kind, first, tuple(scored), notes,
                             detail=chosen_detail)
 
+    def _gentler_tail(self, x: _F8, t_s: float, d: _F8, centres: _F8, radii: _F8,
+                      segs: _F8, m0: _F8, X_new: _F8) -> tuple | None:
+        """The last certified plan's remainder, when the solver's new certified plan
+        ``X_new`` turns faster than the comfort bound and the remainder, re-simulated
+        and certified against the obstacles known now, does not: (note, best) or None.
+        A certified plan, not a fallback (``fallback == "none"``); the note says so. An RTI step can jump from a plan that holds the bound to another local
+        answer that turns at twice it; the plan it left is still safe."""
+        r_ok = max(float(self.nu_max[2]) * (1.0 + COMFORT_TOL), abs(float(x[5])))
+        if self._plan is None or float(np.max(np.abs(X_new[1:, 5]))) <= r_ok:
+            return None
+        i = self._plan.index_at(t_s)
+        N = self.config.N
+        if not 0 <= i < self._plan.u.shape[0]:
+            return None
+        U = np.zeros((N, 3))
+        rest = self._plan.u[i:]
+        U[: len(rest)] = rest
+        X, U = self._simulate(x, Candidate(Fallback.PLAN_TAIL, "", U, len(rest)), d)
+        if float(np.max(np.abs(X[1:, 5]))) > r_ok:
+            return None
+        margins, low, term, finite = self._cert.margins(X, centres, radii, segs)
+        cert, why, path_low = self._cert.judge(margins, low, term, finite, m0)
+        if not cert:
+            return None
+        note = (f"the last certified plan kept (from t = {self._plan.t0_s:.1f} s): the "
+                f"solver's new plan turns at {float(np.max(np.abs(X_new[1:, 5]))):.3g} "
+                f"rad/s, faster than the comfort bound {float(self.nu_max[2]):.3g}")
+        return note, (X, U, margins, term, cert, why, path_low)
+
+    def _thrust_now(self, t_s: float, x: _F8, tau: ArrayLike | None) -> _F8 | None:
+        """The thrust produced at ``t_s`` [N, N, Nm] (lagged plans; None otherwise): the
+        caller's ``tau``, else the last call's output followed through the lag since
+        then, else (a first call) the thrust that holds the present velocity ``x[3:6]``
+        against the hull's damping and Coriolis forces (steady state), clipped to the
+        actuators' range."""
+        if not self._lag:
+            return None
+        if tau is not None:
+            return np.clip(check_vector(tau, 3, "thrust tau", ("tau_u", "tau_v", "tau_r")),
+                           self.u_lb, self.u_ub)
+        if self._applied is None:  # the thrust that holds the present velocity
+            u, v, r = (float(z) for z in x[3:6])
+            e = SMOOTH_ABS_EPS
+            held = hydrodynamic_force_abs(u, v, r, math.sqrt(u * u + e), math.sqrt(v * v + e),
+                                          math.sqrt(r * r + e), self._coef)
+            return np.clip(np.asarray(held, dtype=float), self.u_lb, self.u_ub)
+        t_a, tau_a, u_a = self._applied
+        a = np.exp(-max(t_s - t_a, 0.0) / self._tc)
+        return u_a + (tau_a - u_a) * a
+
     def _solve(self, x: _F8, uL: _F8, P: _F8, xg: _F8, ug: _F8, *, retry: bool
                ) -> RawSolution:
         """One backend solve; a retry of an SQP-RTI backend may take up to
@@ -449,6 +545,8 @@ class SafetyFilter:
         often overshoots the nonlinear terminal constraints, and the next call's step
         overshoots back)."""
         b: Any = self.backend  # the acados backend's rti_steps is not in the protocol
+        if self._tau0 is not None and hasattr(b, "set_thrust"):
+            b.set_thrust(self._tau0)
         steps = getattr(b, "rti_steps", None)
         if not retry or steps is None or self.config.retry_rti_steps <= steps:
             return b.solve(x, uL, P, xg, ug)
@@ -503,7 +601,17 @@ class SafetyFilter:
     def _simulate(self, x: _F8, c: Candidate, d: _F8) -> tuple[_F8, _F8]:
         """States and inputs of a candidate, its yaw damping filled in (two passes)."""
         U = c.u.copy()
-        X = self.rollout(x, U, d)
+        if c.govern_to > 0:
+            X = np.empty((U.shape[0] + 1, 6))
+            t0 = self._tau0 if self._tau0 is not None else U[0]
+            rollout_governed(np.ascontiguousarray(x, dtype=float),
+                             np.ascontiguousarray(t0, dtype=float), U,
+                             np.ascontiguousarray(d, dtype=float), self._coef,
+                             self.config.dt_s, self.spec.rk4_substeps,
+                             self._tc if self._lag else np.ones(3), self._lag,
+                             float(self.nu_max[2]), c.govern_to, X, self._tau_buf)
+        else:
+            X = self.rollout(x, U, d)
         if c.damp_from < U.shape[0]:
             k_r = self.terminal_set.k_r
             for _ in range(2):
@@ -524,7 +632,7 @@ class SafetyFilter:
                      ] if solver_u is not None else []
         else:
             cands = candidate_inputs(self.params, x, t_s, self.config.N, self._plan,
-                                     solver_u)
+                                     solver_u, governed=self.config.comfort_pass_through)
         for c in cands:
             X, U = self._simulate(x, c, d)
             margins, low, term, finite = self._cert.margins(X, centres, radii, segs)
@@ -566,6 +674,8 @@ class SafetyFilter:
                 scored: tuple, notes: list[str], *, passed: bool = False,
                 detail: str = "") -> FilterResult:
         N, dt = self.config.N, self.config.dt_s
+        if self._tau0 is not None and self._t is not None:
+            self._applied = (self._t, self._tau0, u0.copy())
         m = centres.shape[1]
         tol = 0.05 * self.params.length
         seg_label = "the coast"

@@ -308,8 +308,10 @@ def test_a_failing_solver_keeps_the_brisk_but_certified_u_l(params):
     assert "no gentler certified plan" in res.explanation
 
 
-def test_without_comfort_pass_through_the_brisk_plan_keeps_u_l_without_a_solve(psf):
-    """The default (comfort_pass_through off): the brisk plan keeps u_L at once."""
+def test_without_comfort_pass_through_the_brisk_plan_keeps_u_l_without_a_solve(params):
+    """comfort_pass_through off: the brisk plan keeps u_L at once."""
+    psf = SafetyFilter(params, config=PsfConfig(backend=available_backends()[0],
+                                                comfort_pass_through=False))
     x, rock = _rock_then_brisk_tail(psf)
     res = _call_with(psf, _Raising(psf.backend, AssertionError("no solve expected")), x, rock,
                      1.0)
@@ -385,10 +387,13 @@ def test_a_qp_the_twin_recorded_converges_at_either_tolerance():
     BALANCE tolerance and converged only at ``qp_tol=1e-4`` (the twin's setting). With
     the slacks in model-scale units it converges at both (measured 38 and 37
     iterations from a reset solver), and the plan starts inside the actuator range. The
-    solver with a tolerance is built apart from the default one and carries it."""
+    solver with a tolerance is built apart from the default one and carries it. The
+    recording predates the thrusters' lag in the plan (6 solver states): it is replayed
+    on the OCP it was recorded from (``model_actuator_lag=False``)."""
     params = cybership2_full_scale()
-    default = SafetyFilter(params, config=PsfConfig(backend="acados")).backend
-    loose = SafetyFilter(params, config=PsfConfig(backend="acados", qp_tol=1e-4)).backend
+    six = {"backend": "acados", "model_actuator_lag": False}
+    default = SafetyFilter(params, config=PsfConfig(**six)).backend
+    loose = SafetyFilter(params, config=PsfConfig(**six, qp_tol=1e-4)).backend
     assert loose is not default
     opts = loose._solver.acados_ocp.solver_options  # type: ignore[attr-defined]
     assert opts.qp_solver_tol_stat == opts.qp_solver_tol_comp == 1e-4

@@ -42,7 +42,9 @@ from asvtwin.control.backends.ocp import (
     OcpSpec,
     cache_dir,
     continuous_dynamics,
+    discrete_lagged_dynamics,
     input_scale,
+    lag_states,
     path_constraints,
     terminal_constraints,
     velocity_slack_scale,
@@ -192,17 +194,22 @@ class AcadosBackend:
         # the whole cost: each RTI step moved u by a few N·m and the full-scale solver
         # stood still (its plans were its warm starts)
         self._S = input_scale(s.u_lb, s.u_ub)
-        x = ca.SX.sym("x", 6)
+        nx = s.nx
+        x = ca.SX.sym("x", nx)
         u = ca.SX.sym("u", 3)
         p = ca.SX.sym("p", s.n_p)
-        xdot = ca.SX.sym("xdot", 6)
+        xdot = ca.SX.sym("xdot", nx)
         model = AcadosModel()
         model.name = f"asvtwin_psf_{s.key()}"
         model.x, model.u, model.p, model.xdot = x, u, p, xdot
-        model.f_expl_expr = f(x, ca.DM(self._S) * u, p[0:3])  # eq. (a), d̂ as parameter
-        model.f_impl_expr = xdot - model.f_expl_expr
-        model.con_h_expr = path_constraints(s)(x, p)  # eq. (e)
-        model.con_h_expr_e = terminal_constraints(s)(x, p)  # eq. (f), (g)
+        if s.lag:  # eq. (a) with the thrusters' lag (the thrust a state): discrete
+            model.disc_dyn_expr = discrete_lagged_dynamics(
+                vessel, s.dt_s, s.rk4_substeps, self._S, s.actuator_tc)(x, u, p[0:3])
+        else:
+            model.f_expl_expr = f(x, ca.DM(self._S) * u, p[0:3])  # eq. (a), d̂ as parameter
+            model.f_impl_expr = xdot - model.f_expl_expr
+        model.con_h_expr = path_constraints(s)(x[0:6], p)  # eq. (e)
+        model.con_h_expr_e = terminal_constraints(s)(x[0:6], p)  # eq. (f), (g)
 
         ocp = AcadosOcp()
         ocp.model = model
@@ -211,18 +218,18 @@ class AcadosBackend:
         # cost ‖u_k − u_L‖²_W: stage 0 full weight, later stages ε (set after creation)
         ocp.cost.cost_type = "LINEAR_LS"
         ocp.cost.cost_type_e = "LINEAR_LS"
-        ocp.cost.Vx = np.zeros((3, 6))
+        ocp.cost.Vx = np.zeros((3, nx))
         ocp.cost.Vu = np.eye(3)
         ocp.cost.W = np.diag(np.asarray(s.W) * self._S ** 2) * s.later_weight
         ocp.cost.yref = np.zeros(3)
-        ocp.cost.Vx_e = np.zeros((0, 6))
+        ocp.cost.Vx_e = np.zeros((0, nx))
         ocp.cost.W_e = np.zeros((0, 0))
         ocp.cost.yref_e = np.zeros(0)
         # eq. (d): hard input bounds
         ocp.constraints.lbu = np.asarray(s.u_lb, dtype=float) / self._S
         ocp.constraints.ubu = np.asarray(s.u_ub, dtype=float) / self._S
         ocp.constraints.idxbu = np.arange(3)
-        ocp.constraints.x0 = np.zeros(6)  # eq. (b)
+        ocp.constraints.x0 = np.zeros(nx)  # eq. (b)
         # eq. (c): soft velocity bounds on stages 1..N
         nu_max = np.asarray(s.nu_max, dtype=float)
         for suffix in ("", "_e"):
@@ -243,8 +250,11 @@ class AcadosBackend:
         fv = velocity_slack_scale(s)
         for suffix, n in (("", ns), ("_e", ns_e)):
             per_unit = np.concatenate([fv, np.ones(n - 3)])
-            setattr(ocp.cost, "zl" + suffix, s.slack_l1 * per_unit)
-            setattr(ocp.cost, "zu" + suffix, s.slack_l1 * per_unit)
+            # the obstacle margins' L1 price ×clearance_slack_weight (not the ellipsoid's)
+            l1 = s.slack_l1 * per_unit
+            l1[3: 3 + nh] *= s.clearance_slack_weight
+            setattr(ocp.cost, "zl" + suffix, l1)
+            setattr(ocp.cost, "zu" + suffix, l1)
             setattr(ocp.cost, "Zl" + suffix, 2 * s.slack_l2 * per_unit**2)
             setattr(ocp.cost, "Zu" + suffix, 2 * s.slack_l2 * per_unit**2)
 
@@ -267,6 +277,9 @@ class AcadosBackend:
             # (only a non-default mode enters the options, so the cache key of the
             # default solver, built before this option existed, stays the same)
             solver_options["hpipm_mode"] = hpipm_mode
+        if s.lag:  # the stage map is disc_dyn_expr (RK4 written out, the lag exact)
+            solver_options["integrator_type"] = "DISCRETE"
+            del solver_options["sim_method_num_stages"], solver_options["sim_method_num_steps"]
         if qp_tol is not None:  # (likewise: only a set tolerance enters the cache key)
             for name in ("qp_solver_tol_stat", "qp_solver_tol_eq", "qp_solver_tol_ineq",
                          "qp_solver_tol_comp"):
@@ -319,14 +332,15 @@ class AcadosBackend:
         """Bind the C entry points once (acados_template re-declares ``argtypes`` on every
         get/set call) and compile the numba loops that drive them (:mod:`.acados_io`)."""
         s = self.spec
-        self._io = AcadosIO(self._solver, model_name, s.N, s.n_p)
+        self._io = AcadosIO(self._solver, model_name, s.N, s.n_p, s.nx)
         self._lb = np.asarray(s.u_lb, dtype=float)
         self._ub = np.asarray(s.u_ub, dtype=float)
         # inputs of a call, reused (the loops need C-contiguous float64 buffers)
-        self._x0 = np.zeros(6)
+        self._x0 = np.zeros(s.nx)
+        self._tau0 = np.zeros(3)  # the thrust produced now, scaled (lagged plans)
         self._yref = np.zeros(3)
         self._P = np.zeros((s.N + 1, s.n_p))
-        self._Xg = np.zeros((s.N + 1, 6))
+        self._Xg = np.zeros((s.N + 1, s.nx))
         self._Ug = np.zeros((s.N, 3))
         # compile (or load from numba's cache) the loops now, not in the first call; the
         # values set here are overwritten by every solve
@@ -338,12 +352,16 @@ class AcadosBackend:
               u_guess: NDArray[np.float64]) -> RawSolution:
         """Up to ``rti_steps`` SQP-RTI steps; see :class:`~.base.Backend`."""
         io = self._io
-        self._x0[:] = x0  # eq. (b)
+        s = self.spec
+        self._x0[:6] = x0  # eq. (b)
         np.divide(u_L, self._S, out=self._yref)
         self._P[:] = stage_params
-        self._Xg[:] = x_guess
+        self._Xg[:, :6] = x_guess[:, :6]
         np.clip(u_guess, self._lb, self._ub, out=self._Ug)
         self._Ug /= self._S
+        if s.lag:
+            self._x0[6:] = self._tau0
+            self._Xg[:, 6:] = lag_states(self._tau0, self._Ug, s.dt_s, s.actuator_tc)
         io.load(self._x0, self._yref, self._P, self._Xg, self._Ug)
         t0 = time.perf_counter()
         status, qp_status, iters = 0, 0, 0
@@ -362,6 +380,7 @@ class AcadosBackend:
                     break
         dt = time.perf_counter() - t0
         X, U = io.read()
+        X = X[:, :6]
         U = U * self._S
         ok = status == 0 and qp_status == 0 and bool(np.all(np.isfinite(U)))
         word = "ok" if ok else f"acados status {status}, QP status {qp_status}"
@@ -372,6 +391,11 @@ class AcadosBackend:
         # slacks are not read back: the filter certifies the plan by simulation instead
         return RawSolution(x=X, u=U, max_slack=float("nan"), success=ok, status=word,
                            iterations=iters, solve_time_s=dt)
+
+    def set_thrust(self, tau: NDArray[np.float64]) -> None:
+        """The thrust the vessel produces now [N, N, Nm] (the lagged plan's τ at stage 0;
+        ignored when the plan does not model the lag)."""
+        np.divide(tau, self._S, out=self._tau0)
 
     def reset(self) -> None:
         """Zero the solver's iterate and multipliers (a new episode, or after a failure)."""

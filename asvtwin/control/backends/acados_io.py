@@ -57,26 +57,28 @@ def load_stages(out_set, cost_set, con_set, upd_p, ptrs, fields, x0, yref, P, Xg
     errors += con_set(cfg, dims, nin, 0, fub, x0.ctypes.data) != 0
     y = yref.ctypes.data
     pb, xb, ub = P.ctypes.data, Xg.ctypes.data, Ug.ctypes.data
+    sx = 8 * Xg.shape[1]  # bytes per stage's state
     for k in range(N):
         errors += cost_set(cfg, dims, nin, k, fy, y) != 0
         errors += upd_p(cap, k, pb + 8 * n_p * k, n_p) != 0
-        out_set(cfg, dims, out, k, fx, xb + 48 * k)
+        out_set(cfg, dims, out, k, fx, xb + sx * k)
         out_set(cfg, dims, out, k, fu, ub + 24 * k)
     errors += upd_p(cap, N, pb + 8 * n_p * N, n_p) != 0
-    out_set(cfg, dims, out, N, fx, xb + 48 * N)
+    out_set(cfg, dims, out, N, fx, xb + sx * N)
     return errors
 
 
 @njit(cache=True)
 def read_plan(out_get, ptrs, fields, X, U):  # pragma: no cover - compiled
-    """The solver's states into ``X`` (N+1, 6) and inputs into ``U`` (N, 3)."""
+    """The solver's states into ``X`` (N+1, nx) and inputs into ``U`` (N, 3)."""
     cfg, dims, out = ptrs[0], ptrs[1], ptrs[2]
     xb, ub = X.ctypes.data, U.ctypes.data
+    sx = 8 * X.shape[1]
     N = U.shape[0]
     for k in range(N):
-        out_get(cfg, dims, out, k, fields[0], xb + 48 * k)
+        out_get(cfg, dims, out, k, fields[0], xb + sx * k)
         out_get(cfg, dims, out, k, fields[1], ub + 24 * k)
-    out_get(cfg, dims, out, N, fields[0], xb + 48 * N)
+    out_get(cfg, dims, out, N, fields[0], xb + sx * N)
 
 
 @njit(cache=True)
@@ -115,9 +117,12 @@ class AcadosIO:
         The acados model name (prefix of the generated functions).
     N, n_p : int
         Stages and parameters per stage.
+    nx : int
+        States per stage (6, or 9 with the thrust states of a lagged plan).
     """
 
-    def __init__(self, solver: Any, model_name: str, N: int, n_p: int) -> None:
+    def __init__(self, solver: Any, model_name: str, N: int, n_p: int, nx: int = 6
+                 ) -> None:
         lib = solver.shared_lib
         self._keep = solver  # the pointers below live as long as the solver
         self.out_set = _OUT_FN(_address(lib.ocp_nlp_out_set))
@@ -141,7 +146,7 @@ class AcadosIO:
         self.fields = np.asarray([ctypes.addressof(self._names[n]) for n in names[:5]],
                                  dtype=np.int64)
         self.N, self.n_p = N, n_p
-        self.X = np.zeros((N + 1, 6))
+        self.X = np.zeros((N + 1, nx))
         self.U = np.zeros((N, 3))
         self._i64 = np.zeros(1, dtype=np.int64)
         self.stat_fields = np.asarray([ctypes.addressof(self._names[n])
@@ -163,7 +168,7 @@ class AcadosIO:
         return int(self.solve_fn(self.capsule))
 
     def read(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Fresh copies of the solver's states (N+1, 6) and inputs (N, 3)."""
+        """Fresh copies of the solver's states (N+1, nx) and inputs (N, 3)."""
         read_plan(self.out_get, self.ptrs, self.fields, self.X, self.U)
         return self.X.copy(), self.U.copy()
 

@@ -29,7 +29,9 @@ from asvtwin.control.backends.ocp import (
     OcpSpec,
     cache_dir,
     discrete_dynamics,
+    discrete_lagged_dynamics,
     input_scale,
+    lag_states,
     path_constraints,
     terminal_constraints,
     velocity_slack_scale,
@@ -72,6 +74,7 @@ class CasadiBackend:
         self.name = f"casadi-{solver}"
         self._solver_name = solver
         self._build(codegen, max_iter)
+        self._tau0 = np.zeros(3)
         self._lam_x: NDArray[np.float64] | None = None
         self._lam_g: NDArray[np.float64] | None = None
 
@@ -80,7 +83,11 @@ class CasadiBackend:
         s = self.spec
         N, nh = s.N, s.n_h
         vessel = s.vessel
-        F = discrete_dynamics(vessel, s.dt_s, s.rk4_substeps)
+        nx = s.nx
+        self._S = input_scale(s.u_lb, s.u_ub)
+        F = (discrete_lagged_dynamics(vessel, s.dt_s, s.rk4_substeps, self._S,
+                                      s.actuator_tc) if s.lag
+             else discrete_dynamics(vessel, s.dt_s, s.rk4_substeps))
         H = path_constraints(s)
         HN = terminal_constraints(s)
         W = ca.DM(np.diag(s.W))
@@ -88,7 +95,6 @@ class CasadiBackend:
         fv = ca.DM(velocity_slack_scale(s))
         # inputs scaled to O(1), u = S·u_s (as the acados backend): in newtons and
         # newton-metres an 88 m hull's cost gradient is ~1e-6, below IPOPT's tolerances
-        self._S = input_scale(s.u_lb, s.u_ub)
         S = ca.DM(self._S)
 
         P = ca.SX.sym("P", 9 + (N + 1) * s.n_p)
@@ -119,7 +125,7 @@ class CasadiBackend:
         inf = np.inf
         Xs, Ss, Us = [], [], []
         for k in range(N + 1):
-            Xk, sl = var(f"x{k}", 6, [-inf] * 6, [inf] * 6)  # x_0 fixed per call, eq. (b)
+            Xk, sl = var(f"x{k}", nx, [-inf] * nx, [inf] * nx)  # x_0 fixed per call, eq. (b)
             Xs.append(Xk)
             self._ix.append(sl)
             if k >= 1:
@@ -127,12 +133,16 @@ class CasadiBackend:
                 Sk, sl = var(f"s{k}", ns, [0.0] * ns, [inf] * ns)
                 Ss.append(Sk)
                 self._is.append(sl)
-                J += s.slack_l1 * ca.sum1(Sk) + s.slack_l2 * ca.sumsqr(Sk)
+                # L1 on every slack, the obstacle margins' (the first nh) priced
+                # ×clearance_slack_weight; a small L2 for conditioning
+                J += (s.slack_l1 * (ca.sum1(Sk) + (s.clearance_slack_weight - 1.0)
+                                    * ca.sum1(Sk[0:nh])) + s.slack_l2 * ca.sumsqr(Sk))
             if k < N:
                 Uk, sl = var(f"u{k}", 3, list(np.asarray(s.u_lb) / self._S),
                              list(np.asarray(s.u_ub) / self._S))  # eq. (d), hard
+                Us_k = Uk
                 Uk = S * Uk  # the physical input
-                Us.append(Uk)
+                Us.append(Us_k if s.lag else Uk)  # (the lagged model takes the scaled one)
                 self._iu.append(sl)
                 du = Uk - uL
                 J += (1.0 if k == 0 else s.later_weight) * ca.mtimes([du.T, W, du])
@@ -141,14 +151,14 @@ class CasadiBackend:
             if k < N:
                 # eq. (a): multiple-shooting continuity
                 g.append(Xs[k + 1] - F(Xs[k], Us[k], pk(k)[0:3]))
-                lbg.extend([0.0] * 6)
-                ubg.extend([0.0] * 6)
+                lbg.extend([0.0] * nx)
+                ubg.extend([0.0] * nx)
             if k >= 1:
                 Sk = Ss[k - 1]
                 if k == N:
-                    hk = HN(Xs[k], pk(k)) + ca.vertcat(Sk[0:nh], Sk[-1])  # eq. (f), (g)
+                    hk = HN(Xs[k][0:6], pk(k)) + ca.vertcat(Sk[0:nh], Sk[-1])  # eq. (f), (g)
                 else:
-                    hk = H(Xs[k], pk(k)) + Sk[0:nh]  # eq. (e)
+                    hk = H(Xs[k][0:6], pk(k)) + Sk[0:nh]  # eq. (e)
                 g.append(hk)
                 lbg.extend([0.0] * hk.shape[0])
                 ubg.extend([inf] * hk.shape[0])
@@ -218,6 +228,11 @@ class CasadiBackend:
         return lib
 
     # ------------------------------------------------------------------------ solving
+    def set_thrust(self, tau: NDArray[np.float64]) -> None:
+        """The thrust the vessel produces now [N, N, Nm] (the lagged plan's τ at stage 0;
+        ignored when the plan does not model the lag)."""
+        self._tau0 = np.asarray(tau, dtype=float) / self._S
+
     def reset(self) -> None:
         """Nothing to forget: every solve starts from the primal guess it is given."""
 
@@ -227,9 +242,14 @@ class CasadiBackend:
         """Solve once; see :class:`asvtwin.control.backends.base.Backend`."""
         s = self.spec
         lbw, ubw = self._lbw.copy(), self._ubw.copy()
-        lbw[self._ix[0]] = x0
-        ubw[self._ix[0]] = x0
+        x0_full = np.concatenate([x0[:6], self._tau0]) if s.lag else x0
+        lbw[self._ix[0]] = x0_full
+        ubw[self._ix[0]] = x0_full
         w0 = np.zeros(self._nw)
+        if s.lag:
+            ug_s = np.clip(u_guess, s.u_lb, s.u_ub) / self._S
+            x_guess = np.hstack([x_guess[:, :6],
+                                 lag_states(self._tau0, ug_s, s.dt_s, s.actuator_tc)])
         for k in range(s.N + 1):
             w0[self._ix[k]] = x_guess[k]
         for k in range(s.N):
@@ -241,7 +261,7 @@ class CasadiBackend:
         dt = time.perf_counter() - t0
         stats = self._solver.stats()
         wopt = np.asarray(sol["x"]).ravel()
-        X = np.stack([wopt[self._ix[k]] for k in range(s.N + 1)])
+        X = np.stack([wopt[self._ix[k]][:6] for k in range(s.N + 1)])
         U = np.stack([wopt[self._iu[k]] for k in range(s.N)]) * self._S
         slack = max(float(np.max(wopt[sl])) for sl in self._is)
         status = str(stats.get("return_status", "unknown"))

@@ -59,6 +59,8 @@ __all__ = [
     "cache_dir",
     "continuous_dynamics",
     "discrete_dynamics",
+    "discrete_lagged_dynamics",
+    "lag_states",
     "path_constraints",
     "terminal_constraints",
     "velocity_slack_scale",
@@ -103,10 +105,19 @@ class OcpSpec:
     yaw_slack_weight : float
         What the yaw-rate bound's slack costs relative to the other slacks (1: the
         same ρ per model-scale unit; see :func:`velocity_slack_scale`).
+    clearance_slack_weight : float
+        What a model-scale metre of the obstacle margins' slack (eq. (e), (f)) costs
+        relative to the other slacks (its L1 price ρ is multiplied by it).
     P_f : tuple of 9 floats
         Terminal ellipsoid matrix (row-major 3x3).
     rk4_substeps : int
         RK4 steps per stage.
+    actuator_tc : tuple of 3 floats
+        The thrusters' first-order time constants [s] (``ActuatorParams.time_constant_s``)
+        when the plan models them, else zeros. With all three > 0 the solver's state is
+        ``[x (6), τ_s (3)]``, τ_s = τ / S the thrust the vessel produces (in the scaled
+        inputs' units, :func:`input_scale`), τ̇_s = (u_s − τ_s) / T: a commanded reversal
+        of the yaw moment takes effect over T, not at once.
     """
 
     params: tuple[tuple[str, float], ...]
@@ -124,6 +135,18 @@ class OcpSpec:
     P_f: tuple[float, ...]
     rk4_substeps: int = 1
     yaw_slack_weight: float = 1.0
+    actuator_tc: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    clearance_slack_weight: float = 1.0
+
+    @property
+    def lag(self) -> bool:
+        """Whether the plan models the thrusters' lag (every time constant > 0)."""
+        return min(self.actuator_tc) > 0.0
+
+    @property
+    def nx(self) -> int:
+        """Number of solver states: 6, or 9 with the thrust states of a lagged plan."""
+        return 9 if self.lag else 6
 
     @property
     def n_p(self) -> int:
@@ -157,6 +180,10 @@ class OcpSpec:
         d = asdict(self)
         if d["yaw_slack_weight"] == 1.0:  # (the default leaves the older keys as they were)
             d.pop("yaw_slack_weight")
+        if not self.lag:
+            d.pop("actuator_tc")
+        if d["clearance_slack_weight"] == 1.0:
+            d.pop("clearance_slack_weight")
         blob = json.dumps(d, sort_keys=True, default=float).encode()
         blob += FORMULATION.encode()
         blob += ca.CasadiMeta.version().encode()
@@ -225,6 +252,52 @@ def discrete_dynamics(p: VesselParams, dt_s: float, substeps: int = 1) -> ca.Fun
         k4 = f(xk + h * k3, u, d)
         xk = xk + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
     return ca.Function("F_stage", [x, u, d], [xk], ["x", "u", "d"], ["x_next"])
+
+
+def discrete_lagged_dynamics(p: VesselParams, dt_s: float, substeps: int, S: ArrayLike,
+                             tc: ArrayLike) -> ca.Function:
+    """x_{k+1} = F(x_k, u_s,k, d̂) of the plan with the thrusters' first-order lag.
+
+    x = [η, ν, τ_s] (9): τ_s, the thrust the vessel produces divided by ``S``, follows
+    the held command u_s as τ_s(t) = u_s + (τ_s,k − u_s) e^{−t/T}, integrated exactly
+    (the lag is faster than a stage, Δt/T = 2.5 for CyberShip II, where classic RK4 of
+    τ̇ would be wrong by half the step); η, ν by classic RK4 (``substeps`` per stage)
+    under τ = S τ_s(t) + d̂ taken at each RK4 node's time.
+    """
+    f = continuous_dynamics(p)
+    x = ca.SX.sym("x", 9)
+    u = ca.SX.sym("u", 3)
+    d = ca.SX.sym("d", 3)
+    Sd = ca.DM(np.asarray(S, dtype=float))
+    T = np.asarray(tc, dtype=float)
+    h = dt_s / substeps
+    e_half, e_full = ca.DM(np.exp(-0.5 * h / T)), ca.DM(np.exp(-h / T))
+    xk, tk = x[0:6], x[6:9]
+    for _ in range(substeps):
+        t_mid = u + (tk - u) * e_half
+        t_end = u + (tk - u) * e_full
+        k1 = f(xk, Sd * tk, d)
+        k2 = f(xk + 0.5 * h * k1, Sd * t_mid, d)
+        k3 = f(xk + 0.5 * h * k2, Sd * t_mid, d)
+        k4 = f(xk + h * k3, Sd * t_end, d)
+        xk = xk + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+        tk = t_end
+    return ca.Function("F_lagged", [x, u, d], [ca.vertcat(xk, tk)], ["x", "u", "d"],
+                       ["x_next"])
+
+
+def lag_states(tau0: ArrayLike, U: ArrayLike, dt_s: float, tc: ArrayLike
+               ) -> NDArray[np.float64]:
+    """The produced thrust at every stage (N+1, 3) of a plan ``U`` (N, 3) held stage by
+    stage from ``tau0`` (3,): τ_{k+1} = u_k + (τ_k − u_k) e^{−Δt/T} (exact for a
+    first-order lag; any units, the same for both)."""
+    U = np.asarray(U, dtype=float)
+    a = np.exp(-dt_s / np.asarray(tc, dtype=float))
+    out = np.empty((U.shape[0] + 1, 3))
+    out[0] = tau0
+    for k in range(U.shape[0]):
+        out[k + 1] = U[k] + (out[k] - U[k]) * a
+    return out
 
 
 def _obstacle_margins(x: ca.SX, pk: ca.SX, n_circles: int, n_segments: int) -> ca.SX:
