@@ -278,6 +278,7 @@ def run_encounter(case: EncounterCase, params: VesselParams, psf: SafetyFilter |
     sides: Counter[str] = Counter()
     calls = inter = ow_calls = ow_inter = 0
     r_avoid = r_all = r_fb = r_steer = 0.0
+    tau_r_full = max(-float(params.actuators.tau_min[2]), float(params.actuators.tau_max[2]))
     ys: list[float] = []
     call_ms: list[float] = []
     goal = False
@@ -333,9 +334,7 @@ def run_encounter(case: EncounterCase, params: VesselParams, psf: SafetyFilter |
             r_all = max(r_all, abs(float(x[5])))
             if changed:
                 r_avoid = max(r_avoid, abs(float(x[5])))
-                if float(u[2]) * math.copysign(1.0, float(x[5])) > -0.99 * max(
-                        -float(params.actuators.tau_min[2]),
-                        float(params.actuators.tau_max[2])):
+                if float(u[2]) * math.copysign(1.0, float(x[5])) > -0.99 * tau_r_full:
                     r_steer = max(r_steer, abs(float(x[5])))
             if fell:
                 r_fb = max(r_fb, abs(float(x[5])))

@@ -44,7 +44,7 @@ from asvtwin.control.terminal_set import braking_input
 from asvtwin.vessel.params import VesselParams
 
 __all__ = ["BackupPlan", "Candidate", "Fallback", "Scored", "backup_input",
-           "candidate_inputs", "plan_side", "select_candidate"]
+           "candidate_inputs", "plan_side", "plan_tail", "select_candidate"]
 
 
 
@@ -112,6 +112,21 @@ def backup_input(params: VesselParams, x: _F8, t_s: float, plan: BackupPlan | No
     return braking_input(params, x, k_r), Fallback.BRAKING
 
 
+def plan_tail(plan: BackupPlan | None, t_s: float, N: int) -> Candidate | None:
+    """The last certified plan's remainder from ``t_s`` (padded with coasting, its yaw
+    damped), or None when there is no plan or it is used up."""
+    if plan is None:
+        return None
+    i = plan.index_at(t_s)
+    if not 0 <= i < plan.u.shape[0]:
+        return None
+    U = np.zeros((N, 3))
+    ut = plan.u[i:]
+    U[: len(ut)] = ut
+    return Candidate(Fallback.PLAN_TAIL, f"stage {i} of the plan of t = {plan.t0_s:.1f} s",
+                     U, len(ut))
+
+
 def candidate_inputs(params: VesselParams, x: _F8, t_s: float, N: int,
                      plan: BackupPlan | None, solver_u: _F8 | None, *,
                      governed: bool = False) -> list[Candidate]:
@@ -124,14 +139,9 @@ def candidate_inputs(params: VesselParams, x: _F8, t_s: float, N: int,
     lb = np.asarray(act.tau_min, dtype=float)
     ub = np.asarray(act.tau_max, dtype=float)
     out: list[Candidate] = []
-    if plan is not None:
-        i = plan.index_at(t_s)
-        if 0 <= i < plan.u.shape[0]:
-            U = np.zeros((N, 3))
-            ut = plan.u[i:]
-            U[: len(ut)] = ut
-            out.append(Candidate(Fallback.PLAN_TAIL, f"stage {i} of the plan of "
-                                 f"t = {plan.t0_s:.1f} s", U, len(ut)))
+    tail = plan_tail(plan, t_s, N)
+    if tail is not None:
+        out.append(tail)
     if solver_u is not None and np.all(np.isfinite(solver_u)):
         out.append(Candidate(Fallback.SOLVER_PLAN, "best effort",
                              np.clip(solver_u, lb, ub), N))

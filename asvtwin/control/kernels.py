@@ -95,10 +95,12 @@ def rollout_lagged(x0, tau0, U, d, p, dt, substeps, tc, out, out_tau):  # pragma
                             out_tau)
 
 @njit(cache=True)
-def _stage(a, ta, u0, u1, u2, d, p, h, substeps, tc, lagged, out, out_t):  # pragma: no cover
+def _stage(a, ta, u0, u1, u2, d, p, h, substeps, eh, ef, lagged, out,
+           out_t):  # pragma: no cover - compiled
     """One stage of :func:`rollout` (``lagged`` False) or :func:`rollout_lagged` from
     state ``a`` (6,) and thrust ``ta`` (3,) under the held command (u0, u1, u2), into
-    ``out`` (6,) and ``out_t`` (3,)."""
+    ``out`` (6,) and ``out_t`` (3,); ``eh``, ``ef`` (3,) are the lag's decay over half
+    and a whole RK4 step, e^{−h/2T} and e^{−h/T}."""
     hh = 0.5 * h
     w = h / 6.0
     for j in range(6):
@@ -110,14 +112,11 @@ def _stage(a, ta, u0, u1, u2, d, p, h, substeps, tc, lagged, out, out_t):  # pra
         if lagged:
             s0 = (out_t[0] + d[0], out_t[1] + d[1], out_t[2] + d[2])
             m = [0.0, 0.0, 0.0]
-            e = [0.0, 0.0, 0.0]
             for j in range(3):
-                m[j] = uu[j] + (out_t[j] - uu[j]) * math.exp(-hh / tc[j])
-                e[j] = uu[j] + (out_t[j] - uu[j]) * math.exp(-h / tc[j])
-            sm = (m[0] + d[0], m[1] + d[1], m[2] + d[2])
-            se = (e[0] + d[0], e[1] + d[1], e[2] + d[2])
-            for j in range(3):
-                out_t[j] = e[j]
+                m[j] = uu[j] + (out_t[j] - uu[j]) * eh[j] + d[j]
+                out_t[j] = uu[j] + (out_t[j] - uu[j]) * ef[j]
+            sm = (m[0], m[1], m[2])
+            se = (out_t[0] + d[0], out_t[1] + d[1], out_t[2] + d[2])
         else:
             s0 = (u0 + d[0], u1 + d[1], u2 + d[2])
             sm = s0
@@ -136,8 +135,8 @@ def _stage(a, ta, u0, u1, u2, d, p, h, substeps, tc, lagged, out, out_t):  # pra
 @njit(cache=True)
 def rollout_governed(x0, tau0, U, d, p, dt, substeps, tc, lagged, r_cap, n_gov, out,
                      out_tau):  # pragma: no cover - compiled
-    """:func:`rollout` (or, ``lagged``, :func:`rollout_lagged` from thrust ``tau0``)
-    with the yaw moment of stages ``0..n_gov-1`` governed: ``U[k, 2]`` gives the turn's
+    """:func:`rollout` (or, ``lagged``, :func:`rollout_lagged` from thrust ``tau0``, time
+    constants ``tc``; unread otherwise) with the yaw moment of stages ``0..n_gov-1`` governed: ``U[k, 2]`` gives the turn's
     direction and its largest moment; where that moment would take the yaw rate past
     ``r_cap`` [rad/s] by the stage's end, the stage holds the moment in
     [−|U[k, 2]|, |U[k, 2]|] that ends it at ``r_cap`` (bisection, 20 halvings), or the
@@ -145,6 +144,12 @@ def rollout_governed(x0, tau0, U, d, p, dt, substeps, tc, lagged, r_cap, n_gov, 
     moments used. Returns the first stage whose state is not finite, or -1."""
     n = U.shape[0]
     h = dt / substeps
+    eh = np.ones(3)
+    ef = np.ones(3)
+    if lagged:
+        for j in range(3):
+            eh[j] = math.exp(-0.5 * h / tc[j])
+            ef[j] = math.exp(-h / tc[j])
     a = np.empty(6)
     ta = np.empty(3)
     b = np.empty(6)
@@ -158,23 +163,25 @@ def rollout_governed(x0, tau0, U, d, p, dt, substeps, tc, lagged, r_cap, n_gov, 
     bad = -1
     for k in range(n):
         top = U[k, 2]
-        _stage(a, ta, U[k, 0], U[k, 1], top, d, p, h, substeps, tc, lagged, b, tb)
+        _stage(a, ta, U[k, 0], U[k, 1], top, d, p, h, substeps, eh, ef, lagged, b, tb)
         if k < n_gov and top != 0.0:
             side = 1.0 if top > 0 else -1.0
             if side * b[5] > r_cap:
                 lo, hi = -top, top
-                _stage(a, ta, U[k, 0], U[k, 1], lo, d, p, h, substeps, tc, lagged, b, tb)
+                _stage(a, ta, U[k, 0], U[k, 1], lo, d, p, h, substeps, eh, ef, lagged, b,
+                       tb)
                 if side * b[5] < r_cap:
                     for _ in range(20):
                         mid = 0.5 * (lo + hi)
-                        _stage(a, ta, U[k, 0], U[k, 1], mid, d, p, h, substeps, tc,
-                               lagged, b, tb)
+                        _stage(a, ta, U[k, 0], U[k, 1], mid, d, p, h, substeps, eh,
+                               ef, lagged, b, tb)
                         if side * b[5] > r_cap:
                             hi = mid
                         else:
                             lo = mid
                 U[k, 2] = lo
-                _stage(a, ta, U[k, 0], U[k, 1], lo, d, p, h, substeps, tc, lagged, b, tb)
+                _stage(a, ta, U[k, 0], U[k, 1], lo, d, p, h, substeps, eh, ef, lagged, b,
+                       tb)
         for j in range(6):
             a[j] = b[j]
             out[k + 1, j] = a[j]

@@ -50,6 +50,7 @@ from asvtwin.control.fallback import (
     Scored,
     candidate_inputs,
     damp_yaw,
+    plan_tail,
     select_candidate,
 )
 from asvtwin.control.kernels import rollout, rollout_governed, rollout_lagged, warm_up
@@ -166,8 +167,7 @@ class SafetyFilter:
         N, s = cfg.N, self.spec
         self._coef = np.ascontiguousarray(params.packed())  # the planning model's
         self._zero3 = np.zeros(3)
-        self._tc = np.asarray(actuator_lag(params), dtype=float)
-        self._lag = bool(cfg.model_actuator_lag and self._tc.min() > 0)
+        self._tc = np.asarray(s.actuator_tc, dtype=float)  # (zeros: no lag modelled)
         self._tau_buf = np.empty((N + 1, 3))
         # the thrust the vessel produces at this call (lagged plans), and what the last
         # call applied: (t, thrust then, input applied)
@@ -253,16 +253,29 @@ class SafetyFilter:
         d = self._zero3 if d_hat is None else np.ascontiguousarray(d_hat, dtype=float)
         if d.shape != (3,):
             raise StateError(f"d_hat must have shape (3,), actually: {d.shape}")
-        X = np.empty((N + 1, 6))
-        if self._lag:
-            t0 = self._tau0 if tau0 is None else np.asarray(tau0, dtype=float)
-            if t0 is None:
-                t0 = U[0]  # (outside a call: no lag transient at the start)
-            rollout_lagged(x0, np.ascontiguousarray(t0, dtype=float), U, d, self._coef,
-                           self.config.dt_s, self.spec.rk4_substeps, self._tc, X,
-                           self._tau_buf)
-        else:
+        return self._roll(x0, U, d, tau0=None if tau0 is None
+                          else np.asarray(tau0, dtype=float))
+
+    def _roll(self, x0: _F8, U: _F8, d: _F8, *, tau0: _F8 | None = None,
+              govern_to: int = 0) -> _F8:
+        """:meth:`rollout` of checked, C-contiguous arrays; ``govern_to`` > 0 holds |r|
+        at ν_max,r over the first stages (``U``'s yaw moments overwritten with those
+        used, :func:`~asvtwin.control.kernels.rollout_governed`)."""
+        X = np.empty((U.shape[0] + 1, 6))
+        lag = self.spec.lag
+        if not lag and govern_to == 0:
             rollout(x0, U, d, self._coef, self.config.dt_s, self.spec.rk4_substeps, X)
+            return X
+        t0 = tau0 if tau0 is not None else self._tau0
+        t0 = np.ascontiguousarray(U[0] if t0 is None else t0, dtype=float)  # (outside a
+        # call: no lag transient at the start)
+        if govern_to == 0:
+            rollout_lagged(x0, t0, U, d, self._coef, self.config.dt_s,
+                           self.spec.rk4_substeps, self._tc, X, self._tau_buf)
+        else:
+            rollout_governed(x0, t0, U, d, self._coef, self.config.dt_s,
+                             self.spec.rk4_substeps, self._tc, lag, float(self.nu_max[2]),
+                             govern_to, X, self._tau_buf)
         return X
 
     def _own_backend(self) -> None:
@@ -493,19 +506,16 @@ class SafetyFilter:
         """The last certified plan's remainder, when the solver's new certified plan
         ``X_new`` turns faster than the comfort bound and the remainder, re-simulated
         and certified against the obstacles known now, does not: (note, best) or None.
-        A certified plan, not a fallback (``fallback == "none"``); the note says so. An RTI step can jump from a plan that holds the bound to another local
-        answer that turns at twice it; the plan it left is still safe."""
+        A certified plan, not a fallback (``fallback == "none"``); the note says so. An
+        RTI step can jump from a plan that holds the bound to another local answer that
+        turns at twice it; the plan it left is still safe."""
         r_ok = max(float(self.nu_max[2]) * (1.0 + COMFORT_TOL), abs(float(x[5])))
         if self._plan is None or float(np.max(np.abs(X_new[1:, 5]))) <= r_ok:
             return None
-        i = self._plan.index_at(t_s)
-        N = self.config.N
-        if not 0 <= i < self._plan.u.shape[0]:
+        tail = plan_tail(self._plan, t_s, self.config.N)
+        if tail is None:
             return None
-        U = np.zeros((N, 3))
-        rest = self._plan.u[i:]
-        U[: len(rest)] = rest
-        X, U = self._simulate(x, Candidate(Fallback.PLAN_TAIL, "", U, len(rest)), d)
+        X, U = self._simulate(x, tail, d)
         if float(np.max(np.abs(X[1:, 5]))) > r_ok:
             return None
         margins, low, term, finite = self._cert.margins(X, centres, radii, segs)
@@ -523,7 +533,7 @@ class SafetyFilter:
         then, else (a first call) the thrust that holds the present velocity ``x[3:6]``
         against the hull's damping and Coriolis forces (steady state), clipped to the
         actuators' range."""
-        if not self._lag:
+        if not self.spec.lag:
             return None
         if tau is not None:
             return np.clip(check_vector(tau, 3, "thrust tau", ("tau_u", "tau_v", "tau_r")),
@@ -601,17 +611,7 @@ class SafetyFilter:
     def _simulate(self, x: _F8, c: Candidate, d: _F8) -> tuple[_F8, _F8]:
         """States and inputs of a candidate, its yaw damping filled in (two passes)."""
         U = c.u.copy()
-        if c.govern_to > 0:
-            X = np.empty((U.shape[0] + 1, 6))
-            t0 = self._tau0 if self._tau0 is not None else U[0]
-            rollout_governed(np.ascontiguousarray(x, dtype=float),
-                             np.ascontiguousarray(t0, dtype=float), U,
-                             np.ascontiguousarray(d, dtype=float), self._coef,
-                             self.config.dt_s, self.spec.rk4_substeps,
-                             self._tc if self._lag else np.ones(3), self._lag,
-                             float(self.nu_max[2]), c.govern_to, X, self._tau_buf)
-        else:
-            X = self.rollout(x, U, d)
+        X = self._roll(x, U, d, govern_to=c.govern_to)
         if c.damp_from < U.shape[0]:
             k_r = self.terminal_set.k_r
             for _ in range(2):

@@ -138,11 +138,10 @@ class CasadiBackend:
                 J += (s.slack_l1 * (ca.sum1(Sk) + (s.clearance_slack_weight - 1.0)
                                     * ca.sum1(Sk[0:nh])) + s.slack_l2 * ca.sumsqr(Sk))
             if k < N:
-                Uk, sl = var(f"u{k}", 3, list(np.asarray(s.u_lb) / self._S),
-                             list(np.asarray(s.u_ub) / self._S))  # eq. (d), hard
-                Us_k = Uk
-                Uk = S * Uk  # the physical input
-                Us.append(Us_k if s.lag else Uk)  # (the lagged model takes the scaled one)
+                Uk_s, sl = var(f"u{k}", 3, list(np.asarray(s.u_lb) / self._S),
+                               list(np.asarray(s.u_ub) / self._S))  # eq. (d), hard
+                Uk = S * Uk_s  # the physical input
+                Us.append(Uk_s if s.lag else Uk)  # (the lagged model takes the scaled one)
                 self._iu.append(sl)
                 du = Uk - uL
                 J += (1.0 if k == 0 else s.later_weight) * ca.mtimes([du.T, W, du])
