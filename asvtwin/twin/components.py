@@ -108,11 +108,14 @@ def twin_filter_config(backend: str = "auto", *, comfort: bool = False) -> PsfCo
 
     ``comfort=True`` adds the comfort pass-through and prices the yaw rate's slack ten
     times the others' (``yaw_slack_weight=10``). Measured on acados (docs/psf.md, "The
-    comfort bound in the twin's filter"): the full-scale encounter set's avoidance turns
-    at most 1.11 times ν_max,r instead of 1.26 (1 case above 1.05 instead of 4), but the
-    filter costs 15 % more per call and the twin's benchmark ran at a median
-    ``realtime_factor`` of 48.6 (goal 50), so it is not the default. On IPOPT it is
-    worse than the defaults in every respect measured.
+    comfort bound in the twin's filter"): since the pass-through also keeps the last
+    certified plan's remainder and offers governed fallback turns, the full-scale
+    encounter set's avoidance turns at most 1.038 times ν_max,r instead of 1.26 (no
+    case above 1.05 instead of 4), but the twin's benchmark runs near or under its
+    ``realtime_factor`` goal of 50 with it (50.9 and 48.3 against 59.4 and 47.3 run
+    alternately; 48.6 median of 8 before the pass-through's extension), so it is not the
+    default. On IPOPT it was worse than the defaults in every respect measured (before
+    that extension).
     """
     return PsfConfig(backend=backend, retry_rti_steps=1, qp_tol=1e-4, hpipm_mode="SPEED_ABS",
                      comfort_pass_through=comfort, yaw_slack_weight=10.0 if comfort else 1.0)
