@@ -14,6 +14,9 @@ expects an alteration to starboard and the ship manoeuvred),
 side their plan goes: starboard, port, straight), ``goal_reached`` (of the runs
 where the goal is reachable), ``open_water_intervention_share`` (of the calls with
 nothing within 15 ship lengths, those where the filter changed u_L),
+``open_water_turning_interventions`` (a learner holding 30 % and then 100 % of the yaw
+moment with nothing to avoid, 200 calls each: the calls where the filter changed u_L;
+the hull turns at 2.5-2.8 ν_max,r under it, and that is the learner's business),
 ``yaw_rate_max_avoidance_ratio`` per setting (the largest |r| while a changed input was
 applied, over the comfort bound ν_max,r; ``yaw_rate_max_fallback_ratio`` the same while
 a fallback manoeuvre was applied; ``avoidance_above_comfort_cases`` the cases whose
@@ -39,7 +42,7 @@ from collections import Counter
 import numpy as np
 
 from asvtwin.control import PsfConfig, SafetyFilter, available_backends, comfort_config
-from asvtwin.control.encounters import encounter_cases, run_encounter
+from asvtwin.control.encounters import encounter_cases, run_encounter, run_open_water_turning
 from asvtwin.control.psf import COMFORT_TOL
 from asvtwin.vessel import cybership2, cybership2_full_scale
 
@@ -64,6 +67,7 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
         cases = [c for c in cases if c.name in names]
     hulls = {"model": cybership2, "full": cybership2_full_scale}
     runs, settings = [], {}
+    turning = [0, 0]  # open-water turning learner: interventions, calls
     unfiltered = 0
     t0 = time.perf_counter()
     scales = ["model", "full"] if args.scale == "both" else args.scale.split(",")
@@ -125,6 +129,12 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
                 "call_ms_median": round(float(np.median(np.concatenate(
                     [r.call_ms for r in rs]))), 3),
             }
+            # a learner turning hard in open water: the filter must leave it be
+            ow_turn = [run_open_water_turning(params, psf, yaw_share=ys) for ys in (0.3, 1.0)]
+            settings[name]["open_water_turning_interventions"] = (
+                f"{sum(i for i, _, _ in ow_turn)}/{sum(n for _, n, _ in ow_turn)}")
+            turning[0] += sum(i for i, _, _ in ow_turn)
+            turning[1] += sum(n for _, n, _ in ow_turn)
             runs += [(r, d_safe) for r in rs]
     fb_all: Counter = Counter()
     for r, _ in runs:
@@ -155,6 +165,7 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
         "open_water_intervention_share": round(
             sum(r.open_water_interventions for r, _ in runs)
             / max(sum(r.open_water_calls for r, _ in runs), 1), 4),
+        "open_water_turning_interventions": f"{turning[0]}/{turning[1]}",
         "unfiltered_collisions": unfiltered,
         "settings": settings,
         "wall_s": round(time.perf_counter() - t0, 1),

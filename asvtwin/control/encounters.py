@@ -46,7 +46,7 @@ from asvtwin.vessel.params import VesselParams
 from asvtwin.vessel.simulator import VesselSimulator
 
 __all__ = ["SINGLE_KINDS", "EncounterCase", "EncounterRun", "encounter_cases",
-           "run_encounter"]
+           "run_encounter", "run_open_water_turning"]
 
 L_MODEL = 1.255  # m
 U_CRUISE = 0.3  # m/s, model scale (CyberShip II is course-unstable above ~0.35 m/s)
@@ -371,3 +371,29 @@ def run_encounter(case: EncounterCase, params: VesselParams, psf: SafetyFilter |
         fallback_sides=dict(sides), open_water_calls=ow_calls,
         open_water_interventions=ow_inter, yaw_rate_max_avoidance=r_avoid,
         yaw_rate_max=r_all, yaw_rate_max_fallback=r_fb, yaw_rate_max_steered=r_steer)
+
+
+def run_open_water_turning(params: VesselParams, psf: SafetyFilter, *, yaw_share: float,
+                           calls: int = 200, surge_share: float = 0.75,
+                           sim_substeps: int = 5) -> tuple[int, int, float]:
+    """A learner that turns in open water: ``surge_share`` of the ahead thrust and
+    ``yaw_share`` of the yaw moment, held for ``calls`` filter calls from cruise, with
+    nothing to avoid. CyberShip II turns faster than ν_max,r under it (course-unstable
+    at speed); the filter must leave it be: (interventions, calls, largest |r| [rad/s]).
+    The open-water half of the comfort question: the avoidance should keep the bound,
+    but a learner's own turn far from everything is not the filter's business."""
+    act = params.actuators
+    u_L = np.array([surge_share * float(act.tau_max[0]), 0.0,
+                    yaw_share * float(act.tau_max[2])])
+    dt = psf.config.dt_s
+    x0 = np.array([0.0, 0.0, 0.0, U_CRUISE * math.sqrt(params.length / L_MODEL), 0.0, 0.0])
+    sim = VesselSimulator(params, x0, dt_s=dt / sim_substeps)
+    psf.reset()
+    x, inter, r_max = x0, 0, 0.0
+    for k in range(calls):
+        res = psf.filter(x, u_L, None, t_s=k * dt)
+        inter += bool(res.intervened)
+        for _ in range(sim_substeps):
+            x = sim.step(res.u0)
+            r_max = max(r_max, abs(float(x[5])))
+    return inter, calls, r_max

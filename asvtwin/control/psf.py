@@ -194,6 +194,7 @@ class SafetyFilter:
         self._solved_last = False  # the previous call ran the solver
         self._fallback_t: float | None = None  # time of the last call ended on a fallback
         self._t: float | None = None
+        self._unsafe_t: float | None = None  # the last call at which u_L was not safe
         self._prefer_starboard = False  # COLREG expects starboard (per call)
         # the uncertified fallback manoeuvre applied at the last call (kind, detail)
         self._last_fallback: tuple[str, str] | None = None
@@ -289,6 +290,7 @@ class SafetyFilter:
     def reset(self) -> None:
         """Forget the last plan and the solver's iterate (new episode)."""
         self._plan, self._last, self._t = None, None, None
+        self._unsafe_t = None
         self._tau0, self._applied = None, None
         self._solved_last = False
         self._fallback_t = None
@@ -393,7 +395,8 @@ class SafetyFilter:
             ok, why, path_low = self._cert.judge(margins, low, term, finite, m0, strict=True)
             if first is None:
                 first = (X, margins, term, why)
-            if ok and cfg.comfort_pass_through and not self._comfortable(X):
+            if (ok and cfg.comfort_pass_through and self._in_avoidance(t_s)
+                    and not self._comfortable(X)):
                 if brisk is None:
                     brisk = (U, X, margins, term)
                 continue
@@ -401,6 +404,8 @@ class SafetyFilter:
                 return self._pass_through(x, uL, u_given, U, X, margins, term, centres,
                                           radii, segs, labels, moving, first, notes, t_s)
         assert first is not None
+        if brisk is None:  # no plan kept u_L safely: an avoidance (comfort_pass_through)
+            self._unsafe_t = t_s
         X_L, margins_L, _, _ = first
         m0 = margins_L[0]
         # 2. the OCP, warm-started from the last solver plan (COLREG: from a starboard turn)
@@ -581,6 +586,15 @@ class SafetyFilter:
         return self._result(x, uL, u_given, uL.copy(), X, U, margins, term, centres, radii,
                             segs, labels, moving, True, "u_L certified", "", iters, t_solve,
                             Fallback.NONE, first, (), notes, passed=True)
+
+    def _in_avoidance(self, t_s: float) -> bool:
+        """Whether an avoidance is on: u_L was not safe at a call within the last
+        horizon N·Δt. Only then does the comfort pass-through hold back a brisk but
+        certified u_L (a learner turning faster than ν_max,r in open water is its own
+        business: holding its yaw there is the intervention the filter must not make)."""
+        if self._unsafe_t is None:
+            return False
+        return 0.0 <= t_s - self._unsafe_t < self.config.N * self.config.dt_s
 
     def _comfortable(self, X: _F8) -> bool:
         """Whether the plan after u_L's step turns no faster than the comfort bound

@@ -114,18 +114,20 @@ class PsfConfig:
         solver is warm-started from a starboard turn when a head-on or crossing vessel
         (classified from the moving obstacles) makes the learner's plan unsafe.
     comfort_pass_through : bool
-        Keep u_L only when the plan that certifies it turns no faster than the comfort
+        During an avoidance (u_L was not safe at a call within the last horizon N·Δt),
+        keep u_L only when the plan that certifies it turns no faster than the comfort
         bound ν_max,r after u_L's own step (or than that step left it, if faster);
         otherwise ask the solver for a gentler certified plan first, and keep u_L (it is
-        certified) only if there is none. Starts an avoidance while a gentle turn still
-        suffices. u_L itself is never judged by the bound: in open water nothing changes.
-        With it, too, a solver's certified plan that turns faster than the bound gives
+        certified) only if there is none. Outside an avoidance u_L is not judged by the
+        bound: a learner turning hard far from everything is left be (0 of 800 calls
+        changed in ``benchmarks/psf_encounters.py``'s open-water turns; without the
+        window 195 of 200 at model scale). With it, too, a solver's certified plan that turns faster than the bound gives
         way to the last certified plan's remainder when that, re-simulated against the
         obstacles known now, is certified and keeps the bound (a certified plan: no
         fallback), and the fallback turns come also governed to hold |r| at the bound.
         Off by default: in ``benchmarks/psf.py``'s full-thrust corridor it intervened on
         65 of 300 calls (3 off), fell back on 1.3 % and its solve p95 was 8.5 ms (goals
-        1 % and 5 ms; docs/psf.md). Part of :func:`comfort_config`; with
+        1 % and 5 ms; docs/psf.md; measured before the avoidance window). Part of :func:`comfort_config`; with
         ``yaw_slack_weight=10`` the twin's optional comfort setting
         (``asvtwin.twin.components.twin_filter_config(comfort=True)``).
     yaw_slack_weight : float
@@ -228,10 +230,13 @@ def comfort_config(**overrides: Any) -> PsfConfig:
     On the encounter set (acados, both hull scales) the yaw rate the filter steered
     into stayed within 1.05 ν_max,r in every case (1.036 / 1.015 times at model / full
     scale, against 1.19 / 1.26 with the defaults), the closest approach came to 0.998
-    d_safe (0.986) and fallbacks to 0.5 % of the calls (0.4 %). Not the default: the
-    9-state QP costs more per solve, and in ``benchmarks/psf.py``'s full-thrust corridor
-    the filter intervenes on most calls to hold the course-unstable hull's yaw (docs/
-    psf.md, "The thrusters' lag")."""
+    d_safe (0.986) and fallbacks to 0.5 % of the calls (0.4 %); a learner turning hard
+    in open water is left be (0 of 800 calls). Not the default: in
+    ``benchmarks/psf.py``'s full-thrust corridor, where the course-unstable hull spins
+    among the obstacles, the filter holds its yaw during avoidances (55 of 300 calls,
+    3 with the defaults) and its call time p95 is 12.4 ms (goal 5 ms); and the lag
+    model's RTI iterate falls into plans that miss the room to stop where the lag-free
+    one does not (docs/psf.md, "The thrusters' lag")."""
     fields: dict[str, Any] = {"model_actuator_lag": True, "comfort_pass_through": True,
                               "clearance_slack_weight": 3.0, "cold_start_solves": 8}
     fields.update(overrides)

@@ -9,10 +9,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from asvtwin.control import PsfConfig, SafetyFilter, available_backends, comfort_config
+from asvtwin.control import (
+    CircleObstacles,
+    PsfConfig,
+    SafetyFilter,
+    available_backends,
+    comfort_config,
+)
 from asvtwin.control import kernels as K
 from asvtwin.control.backends.ocp import discrete_lagged_dynamics, input_scale, lag_states
-from asvtwin.control.encounters import encounter_cases, run_encounter
+from asvtwin.control.encounters import encounter_cases, run_encounter, run_open_water_turning
 from asvtwin.vessel import VesselSimulator, cybership2, cybership2_full_scale
 
 BACKEND = available_backends()[0]
@@ -166,3 +172,31 @@ def test_comfort_first_keeps_the_steered_yaw_within_the_bound(hull):
         assert r.yaw_rate_max_steered <= 1.05 * rb, (c.name, r.yaw_rate_max_steered / rb)
         worst_default = max(worst_default, run_encounter(c, p, default).yaw_rate_max_steered)
     assert worst_default > 1.05 * rb
+
+
+@pytest.mark.parametrize("hull", [cybership2, cybership2_full_scale])
+def test_comfort_first_leaves_a_learner_turning_in_open_water_be(hull):
+    """Item 8's other half: with nothing to avoid, a learner holding the full yaw moment
+    turns the hull at ~2.8 ν_max,r and the comfort-first filter leaves u_L unchanged on
+    every call (before the comfort pass-through waited for an avoidance, it held the
+    yaw at the bound on 195 of 200 calls); the bound is the filter's own avoidance's."""
+    p = hull()
+    psf = SafetyFilter(p, config=comfort_config(backend=BACKEND))
+    inter, calls, r_max = run_open_water_turning(p, psf, yaw_share=1.0, calls=60)
+    assert (inter, calls) == (0, 60)
+    assert r_max > 2.0 * psf.nu_max[2]  # the learner's turn is brisk: the test can fail
+
+
+def test_during_an_avoidance_comfort_first_still_holds_a_brisk_learner_back():
+    """The window of the comfort pass-through: once u_L has been unsafe (a vessel ahead),
+    a brisk but certified u_L within the next horizon sends the filter to the solver
+    first, and far from everything, a horizon later, it does not."""
+    p = cybership2()
+    psf = SafetyFilter(p, config=comfort_config(backend=BACKEND))
+    dt, N = psf.config.dt_s, psf.config.N
+    x = np.array([0.0, 0.0, 0.0, 0.3, 0.0, 0.0])
+    rock = CircleObstacles([[6.0, 0.0]], [1.0])
+    first = psf.filter(x, [1.0, 0.0, 0.0], rock, t_s=0.0)
+    assert not first.passed_through  # u_L unsafe: an avoidance begins
+    assert psf._in_avoidance(0.5) and psf._in_avoidance((N - 1) * dt)
+    assert not psf._in_avoidance(N * dt + 0.5)
