@@ -25,8 +25,8 @@ state and scored against the obstacles known now:
 The filter takes the certified candidate closest to the learner's input (the least
 intervention), preferring one that does not go to port where COLREG expects starboard,
 then one that keeps the yaw rate within the comfort bound; without one, the candidate whose closest approach to any obstacle over the
-horizon is largest (inside d_safe: the one that gets furthest out by the horizon's end
-without coming closer on the way). The learner's raw input is never applied on a failed solve.
+horizon is largest (inside d_safe: the one that gets furthest out of the clearances
+violated now by the horizon's end without coming closer to them on the way). The learner's raw input is never applied on a failed solve.
 """
 
 from __future__ import annotations
@@ -232,8 +232,12 @@ def select_candidate(rows: list[Scored], x: _F8, m0: _F8, cert: Certifier, *,
       that does not go to port where COLREG expects starboard (``prefer_starboard``:
       rules 14, 15, 17(c)), then one whose yaw rate stays within ``r_comfort`` [rad/s]
       (or the present |r|, if larger), else the one that exceeds it least.
-    - Inside d_safe (some stage-0 margin ``m0`` < 0): the plan that gets out without
-      closing in, then the one that ends furthest out.
+    - Inside d_safe (some stage-0 margin ``m0`` < 0): the plan that gets out of the
+      clearances violated now without closing in on them, then the one that ends
+      furthest out of them; then the others as below. Judged on those clearances
+      alone: in dense traffic every plan ends deep in some vessel's grown circle, and
+      judging the recovery by the deepest of all chose, in the twin's benchmark scene,
+      full astern towards a vessel closing from the starboard quarter (a collision).
     - Otherwise the plan whose first deep intrusion (a margin below −10 % of d_safe)
       comes latest; between plans as late, the one whose first deep intrusion around a
       vessel's predicted *mean* position comes latest (``spread``, (N+1, m) [m]: the
@@ -315,15 +319,18 @@ def select_candidate(rows: list[Scored], x: _F8, m0: _F8, cert: Certifier, *,
         if port(min(certified, key=lambda r: r.dist)) and not port(pick):
             note = "starboard preferred (COLREG), a port plan was nearer u_L"
     elif m0.size and m0.min() < 0:  # inside d_safe: out by the end, no closer on the way
-        floor = np.minimum(m0, 0.0) - cert.tol_m
+        inside = m0 < 0  # the clearances violated now: the recovery is from these
+        floor = np.minimum(m0, 0.0)[inside] - cert.tol_m
 
-        def out_score(r: Scored) -> tuple[bool, float, float]:
-            # first a plan that gets out without closing in, then the one that ends
-            # furthest out (staying put does not decrease a margin but never leaves)
+        def out_score(r: Scored) -> tuple[bool, float, tuple[int, int], float, float]:
+            # first a plan that gets out of them without closing in, then the one that
+            # ends furthest out of them (staying put does not decrease a margin but never
+            # leaves), then the others by time and depth as outside d_safe
             mg = r.margins
-            end = float(cert.terminal_clearance(mg, r.term).min()) if mg.shape[1] else 0.0
+            end = float(cert.terminal_clearance(mg, r.term)[inside].min())
             leaves = end >= -cert.tol_m
-            return (leaves and bool(np.all(mg[1:-1] >= floor)), end, r.closest)
+            return (leaves and bool(np.all(mg[1:-1, inside] >= floor)), end,
+                    clear_until(r), *closest(r))
 
         pick = max(rows, key=lambda r: (coast(r), *out_score(r)))
     else:

@@ -191,3 +191,33 @@ def test_stage_spread_is_the_covariance_part_of_the_radius():
     np.testing.assert_allclose(radii - spread, np.tile([3.0, 4.0, 4.0], (11, 1)))
     assert np.all(spread[:, [0, 2]] == 0.0)
     assert np.all(np.diff(spread[:, 1]) > 0)  # the prediction's uncertainty grows
+
+
+def test_inside_d_safe_the_recovery_is_judged_on_the_clearance_violated_now():
+    """Inside a near vessel's clearance (column 0, 0.4 m inside now) with a far vessel
+    (column 1) whose grown circle every candidate ends deep in: the plan that leaves the
+    near vessel without closing in wins, though it ends deeper in the far circle. Judged
+    on the deepest of all columns, the filter chose full astern towards a vessel closing
+    from the starboard quarter in the twin's benchmark scene (seed 16, a collision)."""
+    cert = Certifier(30, D_SAFE, 7.53, 0.0251, np.eye(3), 2.0)
+    cert.start_call(np.array([True, True]), 0, np.zeros(3))  # two vessels, no coast
+    m0 = np.array([-0.4, 20.0])
+
+    def row(kind, near_end, far_end):
+        X = np.zeros((31, 6))
+        X[:, 3] = 0.3
+        m = np.empty((31, 2))
+        m[:, 0] = np.linspace(-0.4, near_end, 31)  # the near vessel: out, or closer
+        m[:, 1] = np.linspace(20.0, far_end, 31)  # the far vessel's circle grows
+        return Scored(kind, "test", X, np.zeros((30, 3)), m, 0.5, False,
+                      "not certified", float(m[1:].min()), 1.0)
+
+    away = row(Fallback.TURN_PORT, 0.6, -30.0)  # leaves the near vessel
+    astern = row(Fallback.ASTERN, -1.0, -20.0)  # closes in on it, shallower in the far one
+    kw = {"length_m": 1.255, "r_comfort": 0.16, "prefer_starboard": False}
+    pick, _ = select_candidate([astern, away], np.zeros(6), m0, cert, **kw)
+    assert pick is away
+    # neither leaves the near vessel: the one that ends furthest out of it
+    stays = row(Fallback.BRAKING, -0.3, -10.0)
+    pick, _ = select_candidate([astern, stays], np.zeros(6), m0, cert, **kw)
+    assert pick is stays
