@@ -130,11 +130,12 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
                     [r.call_ms for r in rs]))), 3),
             }
             # a learner turning hard in open water: the filter must leave it be
-            ow_turn = [run_open_water_turning(params, psf, yaw_share=ys) for ys in (0.3, 1.0)]
-            settings[name]["open_water_turning_interventions"] = (
-                f"{sum(i for i, _, _ in ow_turn)}/{sum(n for _, n, _ in ow_turn)}")
-            turning[0] += sum(i for i, _, _ in ow_turn)
-            turning[1] += sum(n for _, n, _ in ow_turn)
+            ow_turn = [run_open_water_turning(params, psf, yaw_share=ys)[:2]
+                       for ys in (0.3, 1.0)]
+            inter, n_calls = (sum(col) for col in zip(*ow_turn, strict=True))
+            settings[name]["open_water_turning_interventions"] = f"{inter}/{n_calls}"
+            turning[0] += inter
+            turning[1] += n_calls
             runs += [(r, d_safe) for r in rs]
     fb_all: Counter = Counter()
     for r, _ in runs:

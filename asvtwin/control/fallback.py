@@ -24,9 +24,11 @@ state and scored against the obstacles known now:
 
 The filter takes the certified candidate closest to the learner's input (the least
 intervention), preferring one that does not go to port where COLREG expects starboard,
-then one that keeps the yaw rate within the comfort bound; without one, the candidate whose closest approach to any obstacle over the
-horizon is largest (inside d_safe: the one that gets furthest out of the clearances
-violated now by the horizon's end without coming closer to them on the way). The learner's raw input is never applied on a failed solve.
+then one that keeps the yaw rate within the comfort bound; without one, the candidate
+whose closest approach to any obstacle over the horizon is largest (inside d_safe: the
+one that gets furthest out of the clearances violated now by the horizon's end without
+coming closer to them on the way). The learner's raw input is never applied on a failed
+solve.
 """
 
 from __future__ import annotations

@@ -404,7 +404,7 @@ class SafetyFilter:
                 return self._pass_through(x, uL, u_given, U, X, margins, term, centres,
                                           radii, segs, labels, moving, first, notes, t_s)
         assert first is not None
-        if brisk is None:  # no plan kept u_L safely: an avoidance (comfort_pass_through)
+        if brisk is None:  # no plan kept u_L safely: an avoidance (see _in_avoidance)
             self._unsafe_t = t_s
         X_L, margins_L, _, _ = first
         m0 = margins_L[0]

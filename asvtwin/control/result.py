@@ -121,13 +121,14 @@ class PsfConfig:
         certified) only if there is none. Outside an avoidance u_L is not judged by the
         bound: a learner turning hard far from everything is left be (0 of 800 calls
         changed in ``benchmarks/psf_encounters.py``'s open-water turns; without the
-        window 195 of 200 at model scale). With it, too, a solver's certified plan that turns faster than the bound gives
-        way to the last certified plan's remainder when that, re-simulated against the
-        obstacles known now, is certified and keeps the bound (a certified plan: no
-        fallback), and the fallback turns come also governed to hold |r| at the bound.
-        Off by default: in ``benchmarks/psf.py``'s full-thrust corridor it intervened on
-        65 of 300 calls (3 off), fell back on 1.3 % and its solve p95 was 8.5 ms (goals
-        1 % and 5 ms; docs/psf.md; measured before the avoidance window). Part of :func:`comfort_config`; with
+        window 195 of 200 at model scale). With it, too, a solver's certified plan that
+        turns faster than the bound gives way to the last certified plan's remainder
+        when that, re-simulated against the obstacles known now, is certified and keeps
+        the bound (a certified plan: no fallback), and the fallback turns come also
+        governed to hold |r| at the bound. Off by default: in ``benchmarks/psf.py``'s
+        full-thrust corridor it intervened on 65 of 300 calls (3 off), fell back on
+        1.3 % and its solve p95 was 8.5 ms (goals 1 % and 5 ms; docs/psf.md; measured
+        before the avoidance window). Part of :func:`comfort_config`; with
         ``yaw_slack_weight=10`` the twin's optional comfort setting
         (``asvtwin.twin.components.twin_filter_config(comfort=True)``).
     yaw_slack_weight : float

@@ -188,9 +188,9 @@ def test_comfort_first_leaves_a_learner_turning_in_open_water_be(hull):
 
 
 def test_during_an_avoidance_comfort_first_still_holds_a_brisk_learner_back():
-    """The window of the comfort pass-through: once u_L has been unsafe (a vessel ahead),
-    a brisk but certified u_L within the next horizon sends the filter to the solver
-    first, and far from everything, a horizon later, it does not."""
+    """The window of the comfort pass-through: a call at which u_L is unsafe (a rock
+    ahead) opens it for one horizon N·Δt and no longer (what it holds back inside the
+    window: tests/control/test_faults.py, the "brisk" tests)."""
     p = cybership2()
     psf = SafetyFilter(p, config=comfort_config(backend=BACKEND))
     dt, N = psf.config.dt_s, psf.config.N
