@@ -12,6 +12,7 @@ three groundings."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from asvtwin.control.certification import Certifier
 from asvtwin.control.fallback import Fallback, Scored, select_candidate, static_low
@@ -221,3 +222,36 @@ def test_inside_d_safe_the_recovery_is_judged_on_the_clearance_violated_now():
     stays = row(Fallback.BRAKING, -0.3, -10.0)
     pick, _ = select_candidate([astern, stays], np.zeros(6), m0, cert, **kw)
     assert pick is stays
+
+
+def test_outside_every_circle_the_closest_approach_decides_not_the_means():
+    """Two plans that stay outside every circle, 38 m beyond d_safe from the coast at
+    their first stage (to the centimetre): the one that keeps 30 m from a vessel's grown
+    circle beats the one that comes within 14.5 m of it, however far that vessel's
+    predicted mean stays. A variant tried 2026-12-07 (docs/psf.md, "Tried and not kept:
+    the closest approach around the means") ranked such plans around the means: the
+    centimetre on the coast then decided, and in the twin's benchmark scene (seed 16,
+    ``rl_psf``) the ship backed off at full astern on a call where its plan's tail kept
+    clear."""
+    cert = Certifier(30, D_SAFE, 7.53, 0.0251, np.eye(3), 2.0)
+    cert.start_call(np.array([True]), 1, np.zeros(3))  # a vessel, then a coast segment
+    m0 = np.array([60.0, 39.6])
+    spread = np.zeros((31, 1))
+    spread[:, 0] = np.linspace(0.0, 200.0, 31)  # the vessel's circle grows by 200 m
+
+    def row(kind, coast_first, vessel_low):
+        X = np.zeros((31, 6))
+        m = np.empty((31, 2))
+        m[:, 0] = np.linspace(60.0, vessel_low, 31)  # its circle, closing in at the end
+        m[:, 1] = np.linspace(coast_first, coast_first + 30.0, 31)
+        m[0, 1] = 39.6
+        return Scored(kind, "test", X, np.zeros((30, 3)), m, 0.5, False,
+                      "not certified", float(m[1:].min()), 1.0)
+
+    tail = row(Fallback.PLAN_TAIL, 38.30, 30.0)
+    astern = row(Fallback.ASTERN, 38.31, 14.5)
+    assert tail.closest == pytest.approx(30.0) and astern.closest == pytest.approx(14.5)
+    kw = {"length_m": 1.255, "r_comfort": 0.16, "prefer_starboard": False}
+    for rows in ([tail, astern], [astern, tail]):
+        pick, _ = select_candidate(rows, np.zeros(6), m0, cert, spread=spread, **kw)
+        assert pick is tail
