@@ -24,11 +24,17 @@ avoidance turned faster than the filter's own comfort tolerance,
 1.05 ν_max,r; ``yaw_rate_max_steered_ratio`` and ``steered_above_comfort_cases`` the
 same leaving out the moments when the applied yaw moment opposed the turn at full
 strength: the yaw the filter steered into, not a turn the hull kept up against all its
-thrusters could do), ``unfiltered_collisions``, per-setting breakdowns, and the
+thrusters could do), ``failed_cases`` per setting (collided, grounded, or closer than
+0.95 d_safe), ``unfiltered_collisions``, per-setting breakdowns, and the
 median filter call time [ms].
 
+``--random K [--random-seed S]`` runs K random vessel encounters
+(:func:`asvtwin.control.encounters.random_vessel_cases`) instead of the set: cases
+nobody chose, for the filter's behaviour where it was not looked at.
+
 Usage: ``python benchmarks/psf_encounters.py [--backend acados,casadi-ipopt]
-[--scale model,full] [--cases all|NAME,...] [--config default|comfort|twin|twin-comfort]``
+[--scale model,full] [--cases all|NAME,...] [--config default|comfort|twin|twin-comfort]
+[--random K [--random-seed S]]``
 """
 
 from __future__ import annotations
@@ -42,7 +48,12 @@ from collections import Counter
 import numpy as np
 
 from asvtwin.control import PsfConfig, SafetyFilter, available_backends, comfort_config
-from asvtwin.control.encounters import encounter_cases, run_encounter, run_open_water_turning
+from asvtwin.control.encounters import (
+    encounter_cases,
+    random_vessel_cases,
+    run_encounter,
+    run_open_water_turning,
+)
 from asvtwin.control.psf import COMFORT_TOL
 from asvtwin.vessel import cybership2, cybership2_full_scale
 
@@ -60,8 +71,16 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
                          "asvtwin.control.comfort_config(), the twin's "
                          "(asvtwin.twin.components.twin_filter_config), or the twin's "
                          "with its comfort options (comfort=True)")
+    ap.add_argument("--random", type=int, default=0, metavar="K",
+                    help="instead of the set, K random vessel encounters "
+                         "(asvtwin.control.encounters.random_vessel_cases)")
+    ap.add_argument("--random-seed", type=int, default=1, metavar="S",
+                    help="the random encounters' seed (default 1)")
     args = ap.parse_args()
-    cases = encounter_cases()
+    if args.random < 0:
+        ap.error(f"--random must be >= 0, actually: {args.random}")
+    cases = (random_vessel_cases(args.random, args.random_seed) if args.random
+             else encounter_cases())
     if args.cases != "all":
         names = set(args.cases.split(","))
         cases = [c for c in cases if c.name in names]
@@ -126,6 +145,10 @@ def _main(stdout) -> None:  # type: ignore[no-untyped-def]
                 "steered_above_comfort_cases": sorted(
                     r.name for r in rs
                     if r.yaw_rate_max_steered > (1.0 + COMFORT_TOL) * float(psf.nu_max[2])),
+                # the cases that collided, grounded or came closer than 0.95 d_safe
+                "failed_cases": sorted(
+                    r.name for r in rs if r.collisions or r.groundings
+                    or r.min_distance_m < 0.95 * d_safe),
                 "call_ms_median": round(float(np.median(np.concatenate(
                     [r.call_ms for r in rs]))), 3),
             }

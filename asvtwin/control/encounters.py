@@ -20,6 +20,11 @@ Each :class:`EncounterCase` is written at model scale (CyberShip II, L = 1.255 m
   through the rock: a path follower cannot reach the goal (replanning is the learner's
   job), so these cases score safety only (``goal_expected`` False).
 
+Beyond the set, :func:`random_vessel_cases` draws encounters nobody chose (seeded): one
+to three vessels from any direction at any speed, each meeting the own ship's unfiltered
+track at a random time and lateral offset. The set was written with the filter in view;
+these are for asking whether it holds where it was not looked at.
+
 :func:`run_encounter` drives the own ship with a path-following learner (the
 project's LOS guidance with a lookahead of 5 ship lengths and heading/speed autopilot
 without crab compensation, at cruise speed along the route)
@@ -46,7 +51,7 @@ from asvtwin.vessel.params import VesselParams
 from asvtwin.vessel.simulator import VesselSimulator
 
 __all__ = ["SINGLE_KINDS", "EncounterCase", "EncounterRun", "encounter_cases",
-           "run_encounter", "run_open_water_turning"]
+           "random_vessel_cases", "run_encounter", "run_open_water_turning"]
 
 L_MODEL = 1.255  # m
 U_CRUISE = 0.3  # m/s, model scale (CyberShip II is course-unstable above ~0.35 m/s)
@@ -198,6 +203,50 @@ def encounter_cases(*, include: tuple[str, ...] = ("vessels", "open_water", "coa
                 name=f"sudden_rock_{dist:g}m", family="sudden", x0=x0, route=route,
                 duration_s=120.0, circles=np.array([[n, 0.3, 1.0]]),
                 appear_s=np.array([20.0]), goal_expected=False))
+    return out
+
+
+def random_vessel_cases(n: int, seed: int) -> list[EncounterCase]:
+    """``n`` random vessel encounters at model scale (seeded, reproducible).
+
+    Each case has one to three vessels; each vessel's course is uniform over 360°, its
+    speed 0.3 to 1.8 times the own ship's cruise speed (redrawn while the two would
+    close at less than a quarter of cruise speed: a vessel that never arrives tests
+    nothing), and it reaches a point of the own ship's unfiltered track at a time
+    uniform in 30–70 s with a lateral offset uniform within ±½ ship length (so without
+    the filter nearly every case collides). The name records the draw: ``rand07:
+    c215/f1.05/t47/o+0.29,...`` is course 215°, speed factor 1.05, meeting at 47 s,
+    0.29 m to starboard of the track. Not judged for COLREG (``starboard_expected``
+    False); the route and time limit are the set's (30 m north in 250 s)."""
+    if n < 0:
+        raise ValueError(f"random_vessel_cases: n must be >= 0, actually: {n}")
+    rng = np.random.default_rng(seed)
+    U = U_CRUISE
+    own_v = np.array([U, 0.0])
+    out: list[EncounterCase] = []
+    for k in range(n):
+        m = int(rng.integers(1, 4))
+        p0, v, desc = [], [], []
+        for _ in range(m):
+            while True:
+                course = float(rng.uniform(0.0, 360.0))
+                f = float(rng.uniform(0.3, 1.8))
+                c = math.radians(course)
+                vt = f * U * np.array([math.cos(c), math.sin(c)])
+                if np.hypot(*(own_v - vt)) > 0.25 * U:
+                    break
+            t_meet = float(rng.uniform(30.0, 70.0))
+            off = float(rng.uniform(-0.5, 0.5)) * L_MODEL
+            meet = np.array([U * t_meet, off])
+            p0.append(meet - vt * t_meet)
+            v.append(vt)
+            desc.append(f"c{course:.0f}/f{f:.2f}/t{t_meet:.0f}/o{off:+.2f}")
+        out.append(EncounterCase(
+            name=f"rand{k:02d}:" + ",".join(desc), family=f"{m}_vessel",
+            x0=np.array([0.0, 0.0, 0.0, U, 0.0, 0.0]),
+            route=np.array([[0.0, 0.0], [2 * T_MEET[0] * U, 0.0]]),
+            duration_s=5.0 * T_MEET[0], target_p0=np.array(p0), target_v=np.array(v),
+            target_r=np.full(m, 0.5 * L_MODEL)))
     return out
 
 

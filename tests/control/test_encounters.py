@@ -12,7 +12,12 @@ import numpy as np
 import pytest
 
 from asvtwin.control import PsfConfig, SafetyFilter, available_backends
-from asvtwin.control.encounters import SINGLE_KINDS, encounter_cases, run_encounter
+from asvtwin.control.encounters import (
+    SINGLE_KINDS,
+    encounter_cases,
+    random_vessel_cases,
+    run_encounter,
+)
 from asvtwin.vessel import cybership2, cybership2_full_scale
 from tests.conftest import full_run
 
@@ -49,6 +54,52 @@ def test_without_the_filter_every_vessel_encounter_collides():
     for c in encounter_cases(include=("vessels", "sudden")):
         r = run_encounter(c, p, None)
         assert r.collisions >= 1, c.name
+
+
+def test_random_encounters_are_reproducible_and_each_vessel_arrives():
+    """The random cases are the same for the same seed, other for another, and every
+    vessel reaches the own ship's unfiltered track point at the time and lateral offset
+    its name records: without the filter most of them collide (a vessel 0.5 L off the
+    track still touches a hull of length L)."""
+    a, b = random_vessel_cases(12, 5), random_vessel_cases(12, 5)
+    assert [c.name for c in a] == [c.name for c in b]
+    assert all(np.array_equal(x.target_p0, y.target_p0) for x, y in zip(a, b, strict=True))
+    assert [c.name for c in random_vessel_cases(12, 6)] != [c.name for c in a]
+    for c in a:
+        draws = c.name.split(":", 1)[1].split(",")
+        assert len(draws) == len(c.target_r) in (1, 2, 3)
+        for i, d in enumerate(draws):
+            course, f, t, off = (float(v[1:]) for v in d.split("/"))
+            U = c.cruise_m_s
+            assert np.hypot(*c.target_v[i]) == pytest.approx(f * U, abs=0.005 * U)  # (rounded)
+            assert math.degrees(math.atan2(c.target_v[i][1], c.target_v[i][0])) % 360 \
+                == pytest.approx(course, abs=0.5)
+            # where it is at its meeting time (rounded to the second in the name)
+            meet = c.target_p0[i] + c.target_v[i] * t
+            assert meet[1] == pytest.approx(off, abs=0.01 + f * U * 0.5)
+            assert np.hypot(*(c.target_v[i] - np.array([U, 0.0]))) > 0.25 * U
+    p = cybership2()
+    hit = sum(run_encounter(c, p, None).collisions >= 1 for c in a)
+    assert hit >= 9, hit
+    with pytest.raises(ValueError):
+        random_vessel_cases(-1, 0)
+
+
+# Two random encounters the acados backend fails with the defaults (docs/psf.md, "Random
+# encounters"): (hull, seed, index). IPOPT keeps 0.982 and 1.014 d_safe in them, with no
+# fallback. Strict: when a change fixes one, the test says so and the docs must too.
+RANDOM_FAILS = [(cybership2_full_scale, 1, 59), (cybership2, 3, 13)]
+
+
+@pytest.mark.skipif("acados" not in available_backends(), reason="measured on acados")
+@pytest.mark.xfail(strict=True, reason="open (issue 9): the RTI backend loses its "
+                   "certificate here where IPOPT keeps d_safe; see docs/psf.md")
+@pytest.mark.parametrize(("hull", "seed", "k"), RANDOM_FAILS)
+def test_random_encounters_the_rti_backend_still_fails(hull, seed, k):
+    p = hull()
+    psf = SafetyFilter(p, config=PsfConfig(backend="acados"))
+    r = run_encounter(random_vessel_cases(k + 1, seed)[k], p, psf)
+    assert r.collisions == 0 and r.min_distance_m >= (1 - TOL) * psf.d_safe_m, r
 
 
 def _check(runs, d_safe):
