@@ -139,6 +139,24 @@ def _setup_environment() -> Any:
     return acados
 
 
+def solver_cache_key(solver_options: dict[str, Any], version: str, source_dir: str,
+                     scale: NDArray[np.float64]) -> str:
+    """The options part of a generated solver's cache folder name (8 hex digits).
+
+    The generated code depends on the problem (the folder's other part), the solver
+    options, the acados version, and the acados installation it was built against
+    (``source_dir``, what ``ACADOS_SOURCE_DIR`` names): its ``acados_ocp.json`` records
+    that installation's library path, and a cached solver loads ``libacados.so`` from
+    there. Without the installation in the key, a second
+    environment (another virtualenv, a fresh checkout's ``.venv``) reused the first's
+    build and failed to load once that environment was gone ("libacados.so: cannot open
+    shared object file", seen 2026-12-07 when a clean clone's CI venv was deleted)."""
+    return hashlib.sha256(json.dumps(
+        [solver_options, version, "inputs scaled", np.asarray(scale).tolist(),
+         os.path.realpath(source_dir)], sort_keys=True
+    ).encode()).hexdigest()[:8]
+
+
 def acados_available() -> bool:
     """True when the ``acados`` extra is importable and casadi is still the full wheel."""
     try:
@@ -287,12 +305,9 @@ class AcadosBackend:
         for name, value in solver_options.items():
             setattr(opts, name, value)
 
-        # the generated code depends on the problem, the solver options and the acados
-        # version: all three name its cache folder
-        opt_key = hashlib.sha256(json.dumps(
-            [solver_options, getattr(acados, "__version__", ""), "inputs scaled",
-             self._S.tolist()], sort_keys=True
-        ).encode()).hexdigest()[:8]
+        opt_key = solver_cache_key(solver_options, getattr(acados, "__version__", ""),
+                                   os.environ.get("ACADOS_SOURCE_DIR", acados.DIR),
+                                   self._S)
         root = cache_dir() / f"acados_{s.key()}_{opt_key}"
         root.mkdir(parents=True, exist_ok=True)
         ocp.code_export_directory = str(root / "c_generated_code")
