@@ -126,28 +126,39 @@ class EncounterCase:
         return self.target_p0 + t_s * self.target_v
 
 
-def _vessel_case(kinds: tuple[str, ...]) -> EncounterCase:
+def _meeting(course_deg: float, f: float, t_meet: float, off: float) -> tuple[_F8, _F8]:
+    """Start and velocity of a vessel on ``course_deg`` at ``f`` times cruise speed that
+    reaches the own ship's unfiltered track at ``t_meet`` [s], ``off`` [m] to starboard."""
+    c = math.radians(course_deg)
+    vt = f * U_CRUISE * np.array([math.cos(c), math.sin(c)])
+    return np.array([U_CRUISE * t_meet, off]) - vt * t_meet, vt
+
+
+def _targets_case(name: str, p0: list[_F8], v: list[_F8], *,
+                  starboard_expected: bool = False) -> EncounterCase:
+    """The own ship at cruise, north along the set's route, among
+    the vessels starting at ``p0`` with velocities ``v``."""
     U = U_CRUISE
-    route_len = 2 * T_MEET[0] * U
-    p0, v = [], []
-    for i, k in enumerate(kinds):
-        course, f = SINGLE_KINDS[k]
-        c = math.radians(course)
-        vt = f * U * np.array([math.cos(c), math.sin(c)])
-        meet = np.array([U * T_MEET[i], 0.0])
-        p0.append(meet - vt * T_MEET[i])
-        v.append(vt)
-    name = "+".join(kinds)
     return EncounterCase(
-        name=name, family=f"{len(kinds)}_vessel", x0=np.array([0.0, 0.0, 0.0, U, 0.0, 0.0]),
+        name=name, family=f"{len(p0)}_vessel", x0=np.array([0.0, 0.0, 0.0, U, 0.0, 0.0]),
         # the time limit: the direct transit (2 T_MEET) two and a half times. Twice was
         # too short for the three-vessel escape both backends make, a round turn to
         # starboard (360 deg at ~0.087 rad/s: 72 s, plus the slowing): IPOPT was 4 m of
         # the 30 m route short of the goal when 200 s ran out (2026-12-03)
-        route=np.array([[0.0, 0.0], [route_len, 0.0]]), duration_s=5.0 * T_MEET[0],
-        target_p0=np.array(p0), target_v=np.array(v), target_r=np.full(len(kinds),
-                                                                       0.5 * L_MODEL),
-        starboard_expected=all(k in _STARBOARD for k in kinds))
+        route=np.array([[0.0, 0.0], [2 * T_MEET[0] * U, 0.0]]), duration_s=5.0 * T_MEET[0],
+        target_p0=np.array(p0), target_v=np.array(v),
+        target_r=np.full(len(p0), 0.5 * L_MODEL), starboard_expected=starboard_expected)
+
+
+def _vessel_case(kinds: tuple[str, ...]) -> EncounterCase:
+    p0, v = [], []
+    for i, k in enumerate(kinds):
+        course, f = SINGLE_KINDS[k]
+        start, vt = _meeting(course, f, T_MEET[i], 0.0)
+        p0.append(start)
+        v.append(vt)
+    return _targets_case("+".join(kinds), p0, v,
+                         starboard_expected=all(k in _STARBOARD for k in kinds))
 
 
 def _polygon_segments(pts: list[list[float]]) -> _F8:
@@ -221,32 +232,25 @@ def random_vessel_cases(n: int, seed: int) -> list[EncounterCase]:
     if n < 0:
         raise ValueError(f"random_vessel_cases: n must be >= 0, actually: {n}")
     rng = np.random.default_rng(seed)
-    U = U_CRUISE
-    own_v = np.array([U, 0.0])
+    own_v = np.array([U_CRUISE, 0.0])
     out: list[EncounterCase] = []
     for k in range(n):
-        m = int(rng.integers(1, 4))
         p0, v, desc = [], [], []
-        for _ in range(m):
+        for _ in range(int(rng.integers(1, 4))):
             while True:
                 course = float(rng.uniform(0.0, 360.0))
                 f = float(rng.uniform(0.3, 1.8))
                 c = math.radians(course)
-                vt = f * U * np.array([math.cos(c), math.sin(c)])
-                if np.hypot(*(own_v - vt)) > 0.25 * U:
+                if np.hypot(*(own_v - f * own_v[0] * np.array([math.cos(c), math.sin(c)]))
+                            ) > 0.25 * U_CRUISE:
                     break
             t_meet = float(rng.uniform(30.0, 70.0))
             off = float(rng.uniform(-0.5, 0.5)) * L_MODEL
-            meet = np.array([U * t_meet, off])
-            p0.append(meet - vt * t_meet)
+            start, vt = _meeting(course, f, t_meet, off)
+            p0.append(start)
             v.append(vt)
             desc.append(f"c{course:.0f}/f{f:.2f}/t{t_meet:.0f}/o{off:+.2f}")
-        out.append(EncounterCase(
-            name=f"rand{k:02d}:" + ",".join(desc), family=f"{m}_vessel",
-            x0=np.array([0.0, 0.0, 0.0, U, 0.0, 0.0]),
-            route=np.array([[0.0, 0.0], [2 * T_MEET[0] * U, 0.0]]),
-            duration_s=5.0 * T_MEET[0], target_p0=np.array(p0), target_v=np.array(v),
-            target_r=np.full(m, 0.5 * L_MODEL)))
+        out.append(_targets_case(f"rand{k:02d}:" + ",".join(desc), p0, v))
     return out
 
 

@@ -54,8 +54,7 @@ def test_a_solver_built_by_a_deleted_installation_is_not_reused(tmp_path):
     def build(source: str) -> None:
         env = {**os.environ, "ASVTWIN_CACHE": str(cache), "ACADOS_SOURCE_DIR": source}
         r = subprocess.run([sys.executable, "-c", SCRIPT], env=env, capture_output=True,
-                           check=False,
-                           text=True, timeout=900)
+                           check=False, text=True, timeout=900)
         assert r.returncode == 0 and "built" in r.stdout, r.stderr[-3000:]
 
     build(str(other))  # another environment builds first ...

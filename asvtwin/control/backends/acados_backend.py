@@ -305,9 +305,9 @@ class AcadosBackend:
         for name, value in solver_options.items():
             setattr(opts, name, value)
 
+        # (_setup_environment set ACADOS_SOURCE_DIR: the installation acados records)
         opt_key = solver_cache_key(solver_options, getattr(acados, "__version__", ""),
-                                   os.environ.get("ACADOS_SOURCE_DIR", acados.DIR),
-                                   self._S)
+                                   os.environ["ACADOS_SOURCE_DIR"], self._S)
         root = cache_dir() / f"acados_{s.key()}_{opt_key}"
         root.mkdir(parents=True, exist_ok=True)
         ocp.code_export_directory = str(root / "c_generated_code")
