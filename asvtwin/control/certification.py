@@ -134,6 +134,13 @@ class Certifier:
         else:
             ok = low >= -tol
         if not ok:
+            if margins.shape[0] > 2 and path_low >= -tol:
+                # the path keeps d_safe: what fails is eq. (f), the room to stop at its end
+                V = min(max(1.0 - float(term), 0.0), 1.0)
+                need = self.d_f_m * (1.0 - self.credit_factor * (1.0 - math.sqrt(V)))
+                short = -float(margins[-1].min())
+                return False, (f"plan leaves no room to stop at its end (it ends {short:.2f} m "
+                               f"short of d_safe + {need:.2f} m braking distance)"), path_low
             return False, (f"plan violates obstacle clearance (closest {path_low:+.2f} m "
                            "against d_safe)"), path_low
         if term < -TERM_TOL:

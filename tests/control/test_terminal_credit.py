@@ -94,3 +94,30 @@ def test_credit_does_not_admit_a_plan_into_d_safe(which, psf, psf_full):
     assert not res.passed_through
     if res.success:
         assert res.obstacle_margin_m[1:].min() >= -f.certify_tol_m
+
+
+def test_a_plan_short_of_room_to_stop_is_named_so_not_a_clearance_violation():
+    """A straight plan at cruise that ends 3 m clear of a rock: every stage keeps d_safe,
+    but stage N lacks d_safe + the braking distance. The reason must say so (it once read
+    "plan violates obstacle clearance (closest +1.74 m against d_safe)")."""
+    from asvtwin.control.certification import Certifier
+
+    N, d_safe, d_f = 10, 1.0, 5.0
+    cert = Certifier(N, d_safe, d_f, 0.02, np.eye(3), 2.0)
+    X = np.zeros((N + 1, 6))
+    X[:, 0] = np.linspace(0.0, 5.0, N + 1)
+    X[:, 3] = 0.8  # V_N = 0.64: braking needs d_f·0.8 = 4 m beyond d_safe
+    centres = np.array([[[8.0 + 1.0, 0.0]]] * (N + 1))  # a rock of radius 1 m at x = 9 m
+    radii = np.ones((N + 1, 1))
+    cert.start_call(np.array([False]), 0, np.zeros(3))
+    margins, low, term, finite = cert.margins(X, centres, radii, np.zeros((0, 4)))
+    ok, why, path_low = cert.judge(margins, low, term, finite, margins[0])
+    assert not ok
+    assert path_low == pytest.approx(3.0 - d_safe)  # the end is 3 m from the rock's edge
+    assert "no room to stop" in why and "violates obstacle clearance" not in why
+    assert "2.00 m short" in why and "4.00 m braking" in why
+    # a rock that the path itself enters is still a clearance violation
+    centres[:, 0, 0] = 5.5
+    margins, low, term, finite = cert.margins(X, centres, radii, np.zeros((0, 4)))
+    ok, why, _ = cert.judge(margins, low, term, finite, margins[0])
+    assert not ok and "violates obstacle clearance" in why
