@@ -432,13 +432,20 @@ class SafetyFilter:
         prev_fb = self._fallback_t
         in_streak = prev_fb is not None and 0.0 < t_s - prev_fb < N * dt
         retries = 0 if (in_streak and not cfg.retry_in_streak) else cfg.uncertified_retries
+
+        def _certified(U: _F8) -> bool:
+            X_ = self.rollout(x, U, d)
+            mg, lo, tm, fin = self._cert.margins(X_, centres, radii, segs)
+            return self._cert.judge(mg, lo, tm, fin, m0)[0]
+
         for rnd in range(1 + retries):
             for _ in range(attempts):
                 self._slots.set_terminal(xg[-1, 3:])  # exact where the guess ends
                 try:
                     with backend_lock(self.backend):  # shared per process: one at a time
                         self._own_backend()
-                        raw = self._solve(x, uL, P, xg, ug, retry=rnd > 0)
+                        raw = self._solve(x, uL, P, xg, ug, retry=rnd > 0,
+                                          certified=_certified)
                     U = np.clip(raw.u, self.u_lb, self.u_ub)
                     status, ok = raw.status, raw.success
                     iters += raw.iterations
@@ -553,23 +560,47 @@ class SafetyFilter:
         a = np.exp(-max(t_s - t_a, 0.0) / self._tc)
         return u_a + (tau_a - u_a) * a
 
-    def _solve(self, x: _F8, uL: _F8, P: _F8, xg: _F8, ug: _F8, *, retry: bool
-               ) -> RawSolution:
-        """One backend solve; a retry of an SQP-RTI backend may take up to
-        ``retry_rti_steps`` steps (its single step from a plan that was not certified
-        often overshoots the nonlinear terminal constraints, and the next call's step
-        overshoots back)."""
+    def _solve(self, x: _F8, uL: _F8, P: _F8, xg: _F8, ug: _F8, *, retry: bool,
+               certified: Any = None) -> RawSolution:
+        """One backend solve. A retry of an SQP-RTI backend runs the SQP towards
+        convergence: up to ``retry_rti_steps`` single steps, until one changes the inputs
+        by less than 0.1 % of their range (its single step from a plan that was not
+        certified often overshoots the nonlinear terminal constraints, and the next
+        call's step overshoots back). ``certified(U)`` judges each iterate: the last
+        iterate is returned when it is certified, else the last certified one on the way
+        (the SQP has no globalisation: its iterates need not improve monotonically), else
+        the last."""
         b: Any = self.backend  # the acados backend's rti_steps is not in the protocol
         if self._tau0 is not None and hasattr(b, "set_thrust"):
             b.set_thrust(self._tau0)
         steps = getattr(b, "rti_steps", None)
         if not retry or steps is None or self.config.retry_rti_steps <= steps:
             return b.solve(x, uL, P, xg, ug)
-        b.rti_steps = self.config.retry_rti_steps
+        b.rti_steps = 1
+        iters, t_solve = 0, 0.0
+        kept: RawSolution | None = None  # the last certified iterate
+        ok = False
+        span = np.where(self.u_range > 0, self.u_range, 1.0)  # (no sway thruster: 0)
         try:
-            return b.solve(x, uL, P, xg, ug)
+            for _ in range(self.config.retry_rti_steps):
+                raw = b.solve(x, uL, P, xg, ug)
+                iters += raw.iterations
+                t_solve += raw.solve_time_s
+                ok = False
+                if not raw.success or not np.isfinite(raw.x).all():
+                    break
+                U = np.clip(raw.u, self.u_lb, self.u_ub)
+                ok = certified is not None and certified(U)
+                if ok:
+                    kept = raw
+                if float(np.max(np.abs(U - ug) / span)) < 1e-3:
+                    break  # converged
+                xg, ug = raw.x, U
         finally:
             b.rti_steps = steps
+        if kept is not None and not ok:
+            raw = kept
+        return dataclasses.replace(raw, iterations=iters, solve_time_s=t_solve)
 
     def _pass_through(self, x: _F8, uL: _F8, u_given: _F8, U: _F8, X: _F8, margins: _F8,
                       term: float, centres: _F8, radii: _F8, segs: _F8, labels: list[str],

@@ -65,7 +65,13 @@ class PsfConfig:
         Largest number of SQP-RTI steps per call (acados).
     retry_rti_steps : int
         Largest number of SQP-RTI steps of a retry (acados; stops earlier when a step
-        changes the inputs by less than 0.1 % of their range).
+        changes the inputs by less than 0.1 % of their range): a retry runs the SQP
+        towards convergence, one step at a time, each iterate re-simulated and judged;
+        it ends on the last iterate when that is certified, else on the last certified
+        one on the way (the steps have no globalisation and need not improve). 10 since
+        2026-12-07: with 3, two of 480 random encounters lost the certificate for good
+        (full scale 0.355 d_safe, a collision; model scale 0.781), with 4–5 one of them
+        still did (docs/psf.md, "Random encounters").
     cold_start_solves : int
         Solver calls allowed when there is no previous solver plan to warm-start from.
         The SQP-RTI iterates of a cold start do not improve monotonically: on three
@@ -173,7 +179,7 @@ class PsfConfig:
     certify_tol_m: float | None = None
     max_iter: int = 200
     rti_steps: int = 1
-    retry_rti_steps: int = 3
+    retry_rti_steps: int = 10
     cold_start_solves: int = 5
     uncertified_retries: int = 1
     retry_in_streak: bool = True

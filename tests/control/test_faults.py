@@ -271,8 +271,11 @@ def _rock_then_brisk_tail(psf):
 
 
 def _comfort(params):
+    # three SQP steps per retry: the rock's first call then falls back to a hard turn,
+    # the brisk tail these tests need (converged retries find a certified plan keeping u_L)
     return SafetyFilter(params, config=PsfConfig(backend=available_backends()[0],
-                                                 comfort_pass_through=True))
+                                                 comfort_pass_through=True,
+                                                 retry_rti_steps=3))
 
 
 def test_a_brisk_plan_keeping_u_l_sends_the_filter_to_the_solver_first(params):
@@ -311,7 +314,8 @@ def test_a_failing_solver_keeps_the_brisk_but_certified_u_l(params):
 def test_without_comfort_pass_through_the_brisk_plan_keeps_u_l_without_a_solve(params):
     """comfort_pass_through off: the brisk plan keeps u_L at once."""
     psf = SafetyFilter(params, config=PsfConfig(backend=available_backends()[0],
-                                                comfort_pass_through=False))
+                                                comfort_pass_through=False,
+                                                retry_rti_steps=3))  # (see _comfort)
     x, rock = _rock_then_brisk_tail(psf)
     res = _call_with(psf, _Raising(psf.backend, AssertionError("no solve expected")), x, rock,
                      1.0)
