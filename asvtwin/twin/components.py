@@ -94,10 +94,15 @@ def tracker_config(own_length_m: float, full_scale_m: float) -> TrackerConfig:
 def twin_filter_config(backend: str = "auto", *, comfort: bool = False) -> PsfConfig:
     """The safety filter's options in the twin (its own ship is the 88 m hull).
 
-    - One SQP-RTI step per retry: among the benchmark's 50 vessels that do not give way,
-      three steps per retry cost 57 % more wall time over 900 s for 7 % fewer fallbacks
-      (an intermediate version of the OCP; docs/psf.md, "Stage N's braking credit in the
-      OCP").
+    - A retry runs the SQP towards convergence, each iterate judged (``PsfConfig``'s
+      default, ten steps at most; one step per retry until 2026-12-07). With one step,
+      the full-scale random encounters (240 runs, seeds 1-4 of
+      ``random_vessel_cases``) came to 0.652 d_safe at the closest; with ten judged
+      steps 0.950, and over 42 hours of the benchmark's dense scene (seeds 7-27, both
+      controllers) runs inside d_safe 3 -> 1 and fallbacks 16,740 -> 14,400, the
+      collision count the same (1: seed 20 ``los_psf`` before, seed 26 ``rl_psf``
+      after), for 17 % of the speed (``realtime_factor`` 70.2 -> 58.2 at seed 7, side
+      by side; docs/twin.md, "Safety in dense traffic").
     - HPIPM's tolerance 1e-4, not BALANCE's own: with it, 6 % of the full-scale QPs there
       stopped at the iteration limit and failed; 1e-4 ran the twin 1.09-1.33 times as
       fast at seeds 7, 8, 9, with as many fallbacks within run-to-run spread
@@ -117,7 +122,7 @@ def twin_filter_config(backend: str = "auto", *, comfort: bool = False) -> PsfCo
     default. On IPOPT it was worse than the defaults in every respect measured (before
     that extension).
     """
-    return PsfConfig(backend=backend, retry_rti_steps=1, qp_tol=1e-4, hpipm_mode="SPEED_ABS",
+    return PsfConfig(backend=backend, qp_tol=1e-4, hpipm_mode="SPEED_ABS",
                      comfort_pass_through=comfort, yaw_slack_weight=10.0 if comfort else 1.0)
 
 

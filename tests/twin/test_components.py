@@ -131,7 +131,7 @@ def test_the_twins_filter_options():
     assert not plain.comfort_pass_through and plain.yaw_slack_weight == 1.0
     assert comfort.comfort_pass_through and comfort.yaw_slack_weight == 10.0
     for c in (plain, comfort):
-        assert (c.qp_tol, c.hpipm_mode, c.retry_rti_steps) == (1e-4, "SPEED_ABS", 1)
+        assert (c.qp_tol, c.hpipm_mode, c.retry_rti_steps) == (1e-4, "SPEED_ABS", 10)
     assert plain.backend == "auto" and comfort.backend == "acados"
     stage = FilterStage(cybership2_full_scale(), None)
     assert stage.psf.config.comfort_pass_through is False
