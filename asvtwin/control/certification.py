@@ -69,7 +69,10 @@ class Certifier:
     def terminal_requirement(self, nu_end: _F8) -> float:
         """What stage N must keep beyond d_safe from static obstacles [m] for a plan
         ending at velocity ``nu_end``: d_f (1 − c (1 − √V_N)), c the credit factor."""
-        V = float(nu_end @ self.P_f @ nu_end)
+        return self._requirement(float(nu_end @ self.P_f @ nu_end))
+
+    def _requirement(self, V: float) -> float:
+        """d_f (1 − c (1 − √V)) [m] for V = ν_Nᵀ P_f ν_N (clipped to [0, 1])."""
         root = math.sqrt(min(max(V, 0.0), 1.0))
         return self.d_f_m * (1.0 - self.credit_factor * (1.0 - root))
 
@@ -92,10 +95,7 @@ class Certifier:
         # d_safe + d_f of a harbour's shore had no certifiable plan even when stopping.
         static = self.static_cols
         if finite and out.shape[1] and static is not None and static.any():
-            V = 1.0 - float(term)
-            credit = self.credit_factor * self.d_f_m * (1.0 - math.sqrt(min(max(V, 0.0),
-                                                                             1.0)))
-            out[-1, static] += credit
+            out[-1, static] += self.d_f_m - self._requirement(1.0 - float(term))
             if out.shape[0] > 1:
                 low = float(np.min(out[1:]))
         return out, float(low), float(term), bool(finite)
@@ -107,8 +107,7 @@ class Certifier:
         static = self.static_cols
         if static is None or static.shape[0] != margins.shape[1]:
             return margins[-1] + self.d_f_m
-        full = self.d_f_m * math.sqrt(min(max(1.0 - float(term), 0.0), 1.0))
-        back = self.d_f_m - self.credit_factor * (self.d_f_m - full)
+        back = self._requirement(1.0 - float(term))
         return margins[-1] + np.where(static, back, 0.0)
 
     def judge(self, margins: _F8, low: float, term: float, finite: bool, m0: _F8,
@@ -136,8 +135,7 @@ class Certifier:
         if not ok:
             if margins.shape[0] > 2 and path_low >= -tol:
                 # the path keeps d_safe: what fails is eq. (f), the room to stop at its end
-                V = min(max(1.0 - float(term), 0.0), 1.0)
-                need = self.d_f_m * (1.0 - self.credit_factor * (1.0 - math.sqrt(V)))
+                need = self._requirement(1.0 - float(term))
                 short = -float(margins[-1].min())
                 return False, (f"plan leaves no room to stop at its end (it ends {short:.2f} m "
                                f"short of d_safe + {need:.2f} m braking distance)"), path_low
