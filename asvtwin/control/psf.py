@@ -24,6 +24,7 @@ import dataclasses
 import logging
 import math
 import warnings
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -561,7 +562,7 @@ class SafetyFilter:
         return u_a + (tau_a - u_a) * a
 
     def _solve(self, x: _F8, uL: _F8, P: _F8, xg: _F8, ug: _F8, *, retry: bool,
-               certified: Any = None) -> RawSolution:
+               certified: Callable[[_F8], bool] | None = None) -> RawSolution:
         """One backend solve. A retry of an SQP-RTI backend runs the SQP towards
         convergence: up to ``retry_rti_steps`` single steps, until one changes the inputs
         by less than 0.1 % of their range (its single step from a plan that was not
