@@ -126,11 +126,16 @@ class EncounterCase:
         return self.target_p0 + t_s * self.target_v
 
 
+def _velocity(course_deg: float, f: float) -> _F8:
+    """NED velocity [m/s] on ``course_deg`` at ``f`` times cruise speed."""
+    c = math.radians(course_deg)
+    return f * U_CRUISE * np.array([math.cos(c), math.sin(c)])
+
+
 def _meeting(course_deg: float, f: float, t_meet: float, off: float) -> tuple[_F8, _F8]:
     """Start and velocity of a vessel on ``course_deg`` at ``f`` times cruise speed that
     reaches the own ship's unfiltered track at ``t_meet`` [s], ``off`` [m] to starboard."""
-    c = math.radians(course_deg)
-    vt = f * U_CRUISE * np.array([math.cos(c), math.sin(c)])
+    vt = _velocity(course_deg, f)
     return np.array([U_CRUISE * t_meet, off]) - vt * t_meet, vt
 
 
@@ -240,9 +245,7 @@ def random_vessel_cases(n: int, seed: int) -> list[EncounterCase]:
             while True:
                 course = float(rng.uniform(0.0, 360.0))
                 f = float(rng.uniform(0.3, 1.8))
-                c = math.radians(course)
-                if np.hypot(*(own_v - f * own_v[0] * np.array([math.cos(c), math.sin(c)]))
-                            ) > 0.25 * U_CRUISE:
+                if np.hypot(*(own_v - _velocity(course, f))) > 0.25 * U_CRUISE:
                     break
             t_meet = float(rng.uniform(30.0, 70.0))
             off = float(rng.uniform(-0.5, 0.5)) * L_MODEL
