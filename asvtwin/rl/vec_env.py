@@ -151,11 +151,15 @@ class VecPathEnv:
             # CPU per solve, and ~40 % less per training step early in training (the
             # policy pushing at an obstacle for hundreds of steps), with the encounter
             # set's model-scale results unchanged (docs/rl.md, docs/psf.md); a retry
-            # takes one SQP-RTI step, as when the policy was trained
+            # takes one SQP-RTI step; lag-free plans, no comfort pass-through, five
+            # cold-start solves, clearance priced 1: the filter the policy was trained
+            # behind (the defaults until 2026-12-07)
             pc = PsfConfig(N=cfg.psf_horizon, backend=cfg.psf_backend,
                            n_circles=cfg.psf_solver_circles, n_segments=0,
                            hpipm_mode="SPEED", retry_in_streak=False,
-                           retry_rti_steps=1)
+                           retry_rti_steps=1, model_actuator_lag=False,
+                           comfort_pass_through=False, cold_start_solves=5,
+                           clearance_slack_weight=1.0)
             self.filters = [SafetyFilter(self.params, config=pc) for _ in range(n)]
             f0 = self.filters[0]
             # the farthest the ship gets over the horizon plus the clearance it needs

@@ -111,6 +111,12 @@ def twin_filter_config(backend: str = "auto", *, comfort: bool = False) -> PsfCo
       benchmark scene), the full-scale encounter set and the dense scene as safe
       (docs/twin.md, "Speed", 2026-12-03 afternoon).
 
+    - Lag-free plans, five cold-start solves and the obstacle margins' slack priced
+      like the velocity bounds', the filter's defaults until 2026-12-07: the defaults'
+      lag model, comfort pass-through and clearance price (docs/psf.md, "The comfort
+      bound by default") are not yet measured in the twin's dense scene and against
+      its speed goal.
+
     ``comfort=True`` adds the comfort pass-through and prices the yaw rate's slack ten
     times the others' (``yaw_slack_weight=10``). Measured on acados (docs/psf.md, "The
     comfort bound in the twin's filter"): since the pass-through also keeps the last
@@ -123,7 +129,9 @@ def twin_filter_config(backend: str = "auto", *, comfort: bool = False) -> PsfCo
     that extension).
     """
     return PsfConfig(backend=backend, qp_tol=1e-4, hpipm_mode="SPEED_ABS",
-                     comfort_pass_through=comfort, yaw_slack_weight=10.0 if comfort else 1.0)
+                     comfort_pass_through=comfort, yaw_slack_weight=10.0 if comfort else 1.0,
+                     model_actuator_lag=False, cold_start_solves=5,
+                     clearance_slack_weight=1.0)
 
 
 class AisInput:

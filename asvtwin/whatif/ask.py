@@ -132,12 +132,13 @@ def _chunks(n: int, k: int, align: int = 1) -> list[slice]:
 def warm_up(psf_backend: str = "auto") -> None:
     """Load the compiled kernels and the filter's solver in this process (a worker
     initializer: the first call of a fresh process otherwise pays ~1–4 s)."""
-    from asvtwin.control import MovingObstacles, PsfConfig, SafetyFilter
+    from asvtwin.control import MovingObstacles, SafetyFilter
+    from asvtwin.twin.components import twin_filter_config
     from asvtwin.vessel import cybership2, cybership2_full_scale
     from asvtwin.whatif.rollout import filter_config
 
     # the twin's filter, and the rollouts' (its circle slots sized to a fork of 1 target)
-    configs = {PsfConfig(backend=psf_backend),
+    configs = {twin_filter_config(psf_backend),
                filter_config(RolloutConfig(psf_backend=psf_backend), 1)}
     for p in (cybership2(), cybership2_full_scale()):
         for cfg in configs:

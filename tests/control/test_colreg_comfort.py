@@ -262,8 +262,11 @@ def test_the_yaw_rate_slack_weight_prices_only_the_yaw_rate():
     default the spec's cache key is the one it had before the option existed (the
     generated solvers already built stay valid), and another weight is another key."""
     p = cybership2_full_scale()
-    one = SafetyFilter(p, config=PsfConfig(backend="casadi-ipopt", max_iter=5)).backend.spec
-    ten = SafetyFilter(p, config=PsfConfig(backend="casadi-ipopt", max_iter=5,
+    # (lag-free plans, clearance priced 1: the formulation's key before those options)
+    older = {"model_actuator_lag": False, "clearance_slack_weight": 1.0}
+    one = SafetyFilter(p, config=PsfConfig(backend="casadi-ipopt", max_iter=5,
+                                           **older)).backend.spec
+    ten = SafetyFilter(p, config=PsfConfig(backend="casadi-ipopt", max_iter=5, **older,
                                            yaw_slack_weight=10.0)).backend.spec
     f1, f10 = ocp.velocity_slack_scale(one), ocp.velocity_slack_scale(ten)
     np.testing.assert_allclose(f10, f1 * np.array([1.0, 1.0, 10.0]), rtol=1e-12)

@@ -114,7 +114,7 @@ def test_forced_failure_uses_a_checked_candidate_never_u_L(params, default_backe
 
 
 def test_a_failed_solve_in_a_fallback_streak_is_not_retried(params, default_backend):
-    """Every solve fails, a rock 6 m ahead: the first call (cold start) retries from the
+    """Every solve fails, a rock 6.5 m ahead: the first call (cold start) retries from the
     best candidate; the calls of the fallback streak that follows make one solve each (in
     the twin among 50 vessels, retries after a failed solve certified 1 plan in 911
     calls). ``retry_failed_solves=True`` keeps the earlier behaviour: two each."""
@@ -131,7 +131,9 @@ def test_a_failed_solve_in_a_fallback_streak_is_not_retried(params, default_back
         out = []
         for k in range(8):
             n0 = len(count)
-            res = psf.filter(x, FULL_AHEAD, CircleObstacles([[6.0, 0.0]], [2.0]), t_s=0.5 * k)
+            # (6.5 m: a candidate keeps d_safe, so the streak is warm-started from it; at
+            # 6 m, with the thrusters' lag in the plans, none does and every call is cold)
+            res = psf.filter(x, FULL_AHEAD, CircleObstacles([[6.5, 0.0]], [2.0]), t_s=0.5 * k)
             assert res.fallback != "none" and not np.allclose(res.u0, FULL_AHEAD)
             out.append(len(count) - n0)
             x = psf.rollout(x, res.u_pred)[1]
@@ -233,8 +235,10 @@ def test_failed_acados_qp_does_not_poison_later_solves(params):
     psf = SafetyFilter(params, config=PsfConfig(backend="acados"))
     b = psf.backend
     x = np.array([0.0, 0.0, 0.0, 0.4, 0.0, 0.0])
-    # near enough that full ahead is never certified as it is: every call solves
-    obs = CircleObstacles([[7.0, 0.2]], [2.5])
+    # near enough that full ahead is never certified as it is: every call solves (a cold
+    # start this near, 7 m, is not always certified with the lag in the plans: docs/psf.md,
+    # "The comfort bound by default")
+    obs = CircleObstacles([[9.0, 0.5]], [2.5])
     psf.reset()
     assert psf.filter(x, FULL_AHEAD, obs).success
     N = psf.config.N
@@ -250,7 +254,8 @@ def test_failed_acados_qp_does_not_poison_later_solves(params):
     try:
         b.solve(x, FULL_AHEAD, absurd, np.tile(x, (N + 1, 1)), np.tile(FULL_AHEAD, (N, 1)))
         stuck = [psf.filter(x, FULL_AHEAD, obs) for _ in range(5)]
-        assert all("QP status 4" in r.status for r in stuck), [r.status for r in stuck]
+        solved = [r.status for r in stuck if not r.passed_through]  # (u_L certified: no QP)
+        assert len(solved) >= 3 and all("QP status 4" in s for s in solved), solved
     finally:
         b._solver.reset = b._solver_reset
         psf.reset()
