@@ -111,11 +111,16 @@ def twin_filter_config(backend: str = "auto", *, comfort: bool = False) -> PsfCo
       benchmark scene), the full-scale encounter set and the dense scene as safe
       (docs/twin.md, "Speed", 2026-12-03 afternoon).
 
-    - Lag-free plans, five cold-start solves and the obstacle margins' slack priced
-      like the velocity bounds', the filter's defaults until 2026-12-07: the defaults'
-      lag model, comfort pass-through and clearance price (docs/psf.md, "The comfort
-      bound by default") are not yet measured in the twin's dense scene and against
-      its speed goal.
+    - Lag-free plans, no comfort pass-through, five cold-start solves and the
+      obstacle margins' slack priced like the velocity bounds': the filter's defaults
+      until 2026-12-07. With the defaults since (docs/psf.md, "The comfort bound by
+      default") the twin's options hold the comfort bound in the full-scale encounter
+      set (steered yaw 1.017 nu_max,r against 1.257, closest 0.984 d_safe against
+      0.999), but over the benchmark's 42 dense hours (seeds 7-27, both controllers)
+      they collided twice (seed 16 ``los_psf``, 35.0 m; seed 26 ``rl_psf``, 6.6 m)
+      where these collide once (seed 26, 21.3 m), with 14,878 fallbacks against 14,400
+      and ``realtime_factor`` median 48.5 against 50.4 (two runs at a time;
+      docs/twin.md, "Safety in dense traffic").
 
     ``comfort=True`` adds the comfort pass-through and prices the yaw rate's slack ten
     times the others' (``yaw_slack_weight=10``). Measured on acados (docs/psf.md, "The
