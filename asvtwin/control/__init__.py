@@ -33,7 +33,7 @@ from asvtwin.control.obstacles import (
     stage_circles,
 )
 from asvtwin.control.psf import ActiveConstraint, FilterResult, PsfConfig, SafetyFilter
-from asvtwin.control.result import comfort_config
+from asvtwin.control.result import comfort_config, plain_config
 from asvtwin.control.terminal_set import (
     TerminalSet,
     braking_input,
@@ -67,6 +67,7 @@ __all__ = [
     "cpa_tcpa",
     "lidar_circles",
     "obstacle_labels",
+    "plain_config",
     "stage_circles",
     "verify_invariance",
 ]

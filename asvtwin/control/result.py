@@ -232,6 +232,21 @@ class PsfConfig:
                                   f"{getattr(self, name)!r}")
 
 
+PLAIN_FIELDS: dict[str, Any] = {"model_actuator_lag": False, "comfort_pass_through": False,
+                                "cold_start_solves": 5, "clearance_slack_weight": 1.0}
+
+
+def plain_config(**overrides: Any) -> PsfConfig:
+    """The filter as its defaults were until 2026-12-07: lag-free plans, no comfort
+    pass-through, five cold-start solves, the obstacle margins' slack priced like the
+    velocity bounds' (:data:`PLAIN_FIELDS`); ``overrides`` set any other field. What the
+    twin's dense scene and speed goal were measured with and the RL policies were
+    trained behind (``twin_filter_config``, ``asvtwin.rl.vec_env``,
+    ``asvtwin.whatif.rollout.filter_config``; docs/psf.md, "The comfort bound by
+    default")."""
+    return PsfConfig(**{**PLAIN_FIELDS, **overrides})
+
+
 def comfort_config(**overrides: Any) -> PsfConfig:
     """The comfort-first settings as first measured (2026-12-03): the thrusters' lag in
     the plans, the comfort pass-through, ``cold_start_solves=8`` (all three the defaults

@@ -144,22 +144,18 @@ class VecPathEnv:
         #: False for an ended episode that was not reset (auto_reset=False): not filtered
         self.active = np.ones(n, dtype=bool)
         if cfg.setup != "ppo":
-            from asvtwin.control import PsfConfig, SafetyFilter
+            from asvtwin.control import SafetyFilter, plain_config
 
             # no coast in this world: no segment slots (each slot costs every QP iteration)
             # HPIPM's SPEED mode and no retry solve within a fallback streak: ~30 % less
             # CPU per solve, and ~40 % less per training step early in training (the
             # policy pushing at an obstacle for hundreds of steps), with the encounter
             # set's model-scale results unchanged (docs/rl.md, docs/psf.md); a retry
-            # takes one SQP-RTI step; lag-free plans, no comfort pass-through, five
-            # cold-start solves, clearance priced 1: the filter the policy was trained
-            # behind (the defaults until 2026-12-07)
-            pc = PsfConfig(N=cfg.psf_horizon, backend=cfg.psf_backend,
-                           n_circles=cfg.psf_solver_circles, n_segments=0,
-                           hpipm_mode="SPEED", retry_in_streak=False,
-                           retry_rti_steps=1, model_actuator_lag=False,
-                           comfort_pass_through=False, cold_start_solves=5,
-                           clearance_slack_weight=1.0)
+            # takes one SQP-RTI step; the plain filter (the defaults until 2026-12-07),
+            # the one the policy was trained behind
+            pc = plain_config(N=cfg.psf_horizon, backend=cfg.psf_backend,
+                              n_circles=cfg.psf_solver_circles, n_segments=0,
+                              hpipm_mode="SPEED", retry_in_streak=False, retry_rti_steps=1)
             self.filters = [SafetyFilter(self.params, config=pc) for _ in range(n)]
             f0 = self.filters[0]
             # the farthest the ship gets over the horizon plus the clearance it needs

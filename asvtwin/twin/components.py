@@ -32,6 +32,7 @@ from asvtwin.control import (
     SafetyFilter,
     braking_input,
     covariance_inflation,
+    plain_config,
 )
 from asvtwin.geo import Scene
 from asvtwin.observer import DisturbanceObserver, FaultDetector, ResidualModel, SensorNoise
@@ -111,9 +112,9 @@ def twin_filter_config(backend: str = "auto", *, comfort: bool = False) -> PsfCo
       benchmark scene), the full-scale encounter set and the dense scene as safe
       (docs/twin.md, "Speed", 2026-12-03 afternoon).
 
-    - Lag-free plans, no comfort pass-through, five cold-start solves and the
-      obstacle margins' slack priced like the velocity bounds': the filter's defaults
-      until 2026-12-07. With the defaults since (docs/psf.md, "The comfort bound by
+    - The plain filter (``asvtwin.control.plain_config``: lag-free plans, no comfort
+      pass-through, five cold-start solves, the obstacle margins' slack priced like the
+      velocity bounds'), the filter's defaults until 2026-12-07. With the defaults since (docs/psf.md, "The comfort bound by
       default") the twin's options hold the comfort bound in the full-scale encounter
       set (steered yaw 1.017 nu_max,r against 1.257, closest 0.984 d_safe against
       0.999), but over the benchmark's 42 dense hours (seeds 7-27, both controllers)
@@ -133,10 +134,8 @@ def twin_filter_config(backend: str = "auto", *, comfort: bool = False) -> PsfCo
     default. On IPOPT it was worse than the defaults in every respect measured (before
     that extension).
     """
-    return PsfConfig(backend=backend, qp_tol=1e-4, hpipm_mode="SPEED_ABS",
-                     comfort_pass_through=comfort, yaw_slack_weight=10.0 if comfort else 1.0,
-                     model_actuator_lag=False, cold_start_solves=5,
-                     clearance_slack_weight=1.0)
+    return plain_config(backend=backend, qp_tol=1e-4, hpipm_mode="SPEED_ABS",
+                        comfort_pass_through=comfort, yaw_slack_weight=10.0 if comfort else 1.0)
 
 
 class AisInput:

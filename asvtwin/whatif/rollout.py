@@ -73,7 +73,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from asvtwin.checks import F8 as _F8
-from asvtwin.control import CoastSegments, MovingObstacles, PsfConfig, SafetyFilter
+from asvtwin.control import (
+    CoastSegments,
+    MovingObstacles,
+    PsfConfig,
+    SafetyFilter,
+    plain_config,
+)
 from asvtwin.control.backends import backend_lock
 from asvtwin.environment import wind_force, wind_vector
 from asvtwin.errors import ParameterError
@@ -316,11 +322,11 @@ def filter_config(config: RolloutConfig, n_targets: int) -> PsfConfig:
     if config.economy and config.circle_slots:
         nc = next((k for k in (4, 8) if n_targets <= k), nc)
     retries = config.filter_retries if config.economy else PsfConfig.uncertified_retries
-    # the twin's own filter plans lag-free, without the comfort pass-through
-    # (asvtwin.twin.components.twin_filter_config): so do its forks
-    return PsfConfig(backend=config.psf_backend, cold_start_solves=config.cold_start_solves or 5,
-                     n_circles=nc, uncertified_retries=retries, model_actuator_lag=False,
-                     comfort_pass_through=False, clearance_slack_weight=1.0)
+    # the twin's own filter is the plain one (asvtwin.twin.components.twin_filter_config):
+    # so are its forks
+    return plain_config(backend=config.psf_backend,
+                        cold_start_solves=config.cold_start_solves or 5, n_circles=nc,
+                        uncertified_retries=retries)
 
 
 def _course_over_ground(x: _F8) -> float:

@@ -15,6 +15,7 @@ from asvtwin.control import (
     SafetyFilter,
     available_backends,
     comfort_config,
+    plain_config,
 )
 from asvtwin.control import kernels as K
 from asvtwin.control.backends.ocp import discrete_lagged_dynamics, input_scale, lag_states
@@ -152,8 +153,6 @@ def test_comfort_config_and_its_cache_key():
 # vessel crossing from starboard and another overtaking 1.26
 STEERED = {cybership2: ("overtaking", "crossing_port"),
            cybership2_full_scale: ("crossing_starboard+overtaken+head_on",)}
-PLAIN = {"model_actuator_lag": False, "comfort_pass_through": False, "cold_start_solves": 5,
-         "clearance_slack_weight": 1.0}
 
 
 @pytest.mark.parametrize("hull", [cybership2, cybership2_full_scale])
@@ -166,7 +165,7 @@ def test_the_defaults_keep_the_steered_yaw_within_the_bound(hull):
     cases = [c for c in encounter_cases() if c.name in STEERED[hull]]
     assert len(cases) == len(STEERED[hull])
     default = SafetyFilter(p, config=PsfConfig(backend=BACKEND))
-    plain = SafetyFilter(p, config=PsfConfig(backend=BACKEND, **PLAIN))
+    plain = SafetyFilter(p, config=plain_config(backend=BACKEND))
     rb = default.nu_max[2]
     worst_plain = 0.0
     for c in cases:

@@ -135,4 +135,5 @@ def test_the_twins_filter_options():
     assert plain.backend == "auto" and comfort.backend == "acados"
     stage = FilterStage(cybership2_full_scale(), None)
     assert stage.psf.config.comfort_pass_through is False
+    assert not stage.psf.config.model_actuator_lag and stage.psf.config.cold_start_solves == 5
     assert stage.psf.config.yaw_slack_weight == 1.0
